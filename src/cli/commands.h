@@ -1,0 +1,42 @@
+// SPDX-License-Identifier: MIT
+// One Run<Command>() per subcommand (STYLE.md: cli/main.cc is the dispatcher).
+#pragma once
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "horizon/horizon.h"
+
+namespace CLI {
+class App;
+}
+
+namespace horizonreg::cli {
+
+struct HorizonArgs {
+  std::vector<std::string> dem;
+  double lat = NAN, lon = NAN;
+  std::optional<double> agl, alt;
+  HorizonOptions options;
+  std::string format = "json";
+  std::string output = "-";
+  std::string plot;
+  bool ridges = false;
+};
+void AddHorizonCommand(CLI::App& app, HorizonArgs& args);
+int RunHorizon(const HorizonArgs& args);
+
+struct DemoArgs {
+  std::string output_dir = ".";
+  std::string dem;  // default: matplotlib's jacksboro_fault_dem.npz
+};
+void AddDemoCommand(CLI::App& app, DemoArgs& args);
+int RunDemo(const DemoArgs& args);
+
+// Serialisations of a horizon (DESIGN.md "horizon JSON"; CSV; GeoJSON).
+std::string HorizonToJson(const HorizonProfile& p, const std::vector<std::vector<Ridge>>& ridges);
+std::string HorizonToCsv(const HorizonProfile& p);
+std::string HorizonToGeoJson(const HorizonProfile& p);
+
+}  // namespace horizonreg::cli

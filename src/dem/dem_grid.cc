@@ -1,0 +1,84 @@
+// SPDX-License-Identifier: MIT
+#include "dem/dem_grid.h"
+
+#include <algorithm>
+
+#include "geo/geodesy.h"
+#include "util/angles.h"
+
+namespace horizonreg {
+
+std::optional<std::pair<double, double>> DemGrid::PixelOf(double query_lat_deg, double query_lon_deg) const {
+  if (width < 2 || height < 2) return std::nullopt;
+  double col, row;
+  if (separable) {
+    row = (query_lat_deg - lat0_deg) / dlat_deg;
+    col = AngDiffDeg(query_lon_deg, lon0_deg) / dlon_deg;
+    if (col < -1e-9 && dlon_deg > 0) col = (AngDiffDeg(query_lon_deg, lon0_deg) + 360.0) / dlon_deg;
+  } else {
+    // Start from the affine guess, then Newton on the bilinear position map.
+    const double dlon = AngDiffDeg(query_lon_deg, lon_deg[0]);
+    col = col_from_lonlat[0] + col_from_lonlat[1] * dlon + col_from_lonlat[2] * (query_lat_deg - lat_deg[0]);
+    row = row_from_lonlat[0] + row_from_lonlat[1] * dlon + row_from_lonlat[2] * (query_lat_deg - lat_deg[0]);
+    for (int it = 0; it < 8; ++it) {
+      const int c = std::clamp(static_cast<int>(std::floor(col)), 0, width - 2);
+      const int r = std::clamp(static_cast<int>(std::floor(row)), 0, height - 2);
+      const double fx = col - c, fy = row - r;
+      auto lat = [&](int cc, int rr) { return LatAt(cc, rr); };
+      auto lon = [&](int cc, int rr) { return LonAt(cc, rr); };
+      const double la = (1 - fy) * ((1 - fx) * lat(c, r) + fx * lat(c + 1, r)) +
+                        fy * ((1 - fx) * lat(c, r + 1) + fx * lat(c + 1, r + 1));
+      const double lo = (1 - fy) * ((1 - fx) * lon(c, r) + fx * lon(c + 1, r)) +
+                        fy * ((1 - fx) * lon(c, r + 1) + fx * lon(c + 1, r + 1));
+      const double dla_dx = (1 - fy) * (lat(c + 1, r) - lat(c, r)) + fy * (lat(c + 1, r + 1) - lat(c, r + 1));
+      const double dla_dy = (1 - fx) * (lat(c, r + 1) - lat(c, r)) + fx * (lat(c + 1, r + 1) - lat(c + 1, r));
+      const double dlo_dx = (1 - fy) * (lon(c + 1, r) - lon(c, r)) + fy * (lon(c + 1, r + 1) - lon(c, r + 1));
+      const double dlo_dy = (1 - fx) * (lon(c, r + 1) - lon(c, r)) + fx * (lon(c + 1, r + 1) - lon(c + 1, r));
+      const double det = dla_dx * dlo_dy - dla_dy * dlo_dx;
+      if (det == 0.0) break;
+      const double ela = query_lat_deg - la, elo = AngDiffDeg(query_lon_deg, lo);
+      col += (dlo_dy * ela - dla_dy * elo) / det;
+      row += (-dlo_dx * ela + dla_dx * elo) / det;
+    }
+  }
+  const double eps = 1e-9;
+  if (!(col >= -eps && row >= -eps && col <= width - 1 + eps && row <= height - 1 + eps)) return std::nullopt;
+  return std::make_pair(std::clamp(col, 0.0, width - 1.0), std::clamp(row, 0.0, height - 1.0));
+}
+
+std::optional<double> DemGrid::HeightAt(double query_lat_deg, double query_lon_deg) const {
+  auto px = PixelOf(query_lat_deg, query_lon_deg);
+  if (!px) return std::nullopt;
+  const int c = std::min(static_cast<int>(px->first), width - 2);
+  const int r = std::min(static_cast<int>(px->second), height - 2);
+  const double fx = px->first - c, fy = px->second - r;
+  const double h = (1 - fy) * ((1 - fx) * At(c, r) + fx * At(c + 1, r)) +
+                   fy * ((1 - fx) * At(c, r + 1) + fx * At(c + 1, r + 1));
+  if (!std::isfinite(h)) return std::nullopt;
+  return h;
+}
+
+void DemGrid::IndexPositions() {
+  if (separable || width < 2 || height < 2) return;
+  // (lon, lat) offsets of the posts (w-1, 0) and (0, h-1) from post (0, 0).
+  const double a = AngDiffDeg(LonAt(width - 1, 0), LonAt(0, 0)), b = LatAt(width - 1, 0) - LatAt(0, 0);
+  const double c = AngDiffDeg(LonAt(0, height - 1), LonAt(0, 0)), d = LatAt(0, height - 1) - LatAt(0, 0);
+  const double det = a * d - b * c;
+  if (det == 0.0) return;
+  // [col; row] = [[w-1, 0], [0, h-1]] * inverse([[a, c], [b, d]]) * [dlon; dlat]
+  col_from_lonlat[1] = (width - 1) * d / det;
+  col_from_lonlat[2] = -(width - 1) * c / det;
+  row_from_lonlat[1] = -(height - 1) * b / det;
+  row_from_lonlat[2] = (height - 1) * a / det;
+}
+
+double DemGrid::SpacingM() const {
+  const int c = width / 2, r = height / 2;
+  const int c1 = std::min(c + 1, width - 1), r1 = std::min(r + 1, height - 1);
+  LocalFrame frame({LatAt(c, r), LonAt(c, r), 0.0});
+  const double dx = frame.EnuFromGeodetic({LatAt(c1, r), LonAt(c1, r), 0.0}).norm();
+  const double dy = frame.EnuFromGeodetic({LatAt(c, r1), LonAt(c, r1), 0.0}).norm();
+  return std::max(dx, dy);
+}
+
+}  // namespace horizonreg

@@ -1,0 +1,396 @@
+// SPDX-License-Identifier: MIT
+#include "dem/terrain.h"
+
+#include <cpl_conv.h>
+#include <cpl_error.h>
+#include <cpl_string.h>
+#include <gdal.h>
+#include <gdal_alg.h>
+#include <ogr_srs_api.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <mutex>
+#include <sstream>
+
+#include "dem/npz_dem.h"
+#include "util/angles.h"
+#include "util/errors.h"
+
+namespace horizonreg {
+namespace {
+
+constexpr float kVoidSentinel = -1.0e30f;
+
+std::string Quote(const std::string& s) { return "'" + s + "'"; }
+
+std::string LastGdalMessage() {
+  std::string msg = CPLGetLastErrorMsg();
+  if (msg.empty()) return "unknown GDAL error";
+  std::replace(msg.begin(), msg.end(), '\n', ' ');
+  return msg;
+}
+
+// GDAL prints its errors to stderr unless told otherwise; the library never
+// prints, so errors are silenced and read back with CPLGetLastErrorMsg.
+void InitGdalOnce() {
+  static std::once_flag once;
+  std::call_once(once, [] {
+    GDALAllRegister();
+    CPLSetErrorHandler(CPLQuietErrorHandler);
+  });
+}
+
+struct SrsDeleter {
+  void operator()(void* p) const { OSRDestroySpatialReference(static_cast<OGRSpatialReferenceH>(p)); }
+};
+struct CtDeleter {
+  void operator()(void* p) const {
+    OCTDestroyCoordinateTransformation(static_cast<OGRCoordinateTransformationH>(p));
+  }
+};
+struct DatasetDeleter {
+  void operator()(void* p) const { GDALClose(static_cast<GDALDatasetH>(p)); }
+};
+
+struct Source {
+  std::string path;
+  std::unique_ptr<void, DatasetDeleter> dataset;
+  int width = 0, height = 0;
+  double gt[6] = {0, 1, 0, 0, 0, 1};  // GDAL geotransform (pixel corner based)
+  bool separable = false;             // WGS84 geographic, north-up
+  std::unique_ptr<void, CtDeleter> to_wgs84, from_wgs84;  // lon/lat order
+  std::optional<double> nodata;
+
+  double ColOfX(double x) const { return (x - gt[0]) / gt[1] - 0.5; }  // separable only
+  double RowOfY(double y) const { return (y - gt[3]) / gt[5] - 0.5; }
+};
+
+std::unique_ptr<void, SrsDeleter> MakeWgs84() {
+  OGRSpatialReferenceH srs = OSRNewSpatialReference(nullptr);
+  OSRSetWellKnownGeogCS(srs, "WGS84");
+  OSRSetAxisMappingStrategy(srs, OAMS_TRADITIONAL_GIS_ORDER);
+  return std::unique_ptr<void, SrsDeleter>(srs);
+}
+
+GDALDatasetH DatasetFromNpz(const std::string& path) {
+  NpzDem npz = ReadNpzDem(path);
+  GDALDriverH mem = GDALGetDriverByName("MEM");
+  if (mem == nullptr) throw IoError("dem: GDAL has no MEM driver");
+  GDALDatasetH ds = GDALCreate(mem, "", npz.width, npz.height, 1, GDT_Float64, nullptr);
+  const double dx = (npz.east_deg - npz.west_deg) / (npz.width - 1);
+  const double dy = (npz.north_deg - npz.south_deg) / (npz.height - 1);
+  double gt[6] = {npz.west_deg - dx / 2, dx, 0.0, npz.north_deg + dy / 2, 0.0, -dy};
+  GDALSetGeoTransform(ds, gt);
+  auto wgs84 = MakeWgs84();
+  GDALSetSpatialRef(ds, static_cast<OGRSpatialReferenceH>(wgs84.get()));
+  if (GDALRasterIO(GDALGetRasterBand(ds, 1), GF_Write, 0, 0, npz.width, npz.height, npz.elevation_m.data(),
+                   npz.width, npz.height, GDT_Float64, 0, 0) != CE_None) {
+    GDALClose(ds);
+    throw IoError("dem: cannot store " + Quote(path) + " in memory: " + LastGdalMessage());
+  }
+  return ds;
+}
+
+Source OpenSource(const std::string& path) {
+  Source s;
+  s.path = path;
+  std::error_code ec;
+  if (!std::filesystem::exists(path, ec)) throw IoError("dem: cannot open " + Quote(path) + ": no such file");
+  if (std::filesystem::is_directory(path, ec)) throw IoError("dem: " + Quote(path) + " is a directory, not a DEM file");
+  CPLErrorReset();
+  GDALDatasetH ds;
+  if (std::filesystem::path(path).extension() == ".npz") {
+    ds = DatasetFromNpz(path);
+  } else {
+    ds = GDALOpenEx(path.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY, nullptr, nullptr, nullptr);
+  }
+  if (ds == nullptr) throw IoError("dem: " + Quote(path) + " is not a readable raster: " + LastGdalMessage());
+  s.dataset.reset(ds);
+  if (GDALGetRasterCount(ds) < 1) throw IoError("dem: " + Quote(path) + " has no raster band");
+  s.width = GDALGetRasterXSize(ds);
+  s.height = GDALGetRasterYSize(ds);
+  if (s.width < 2 || s.height < 2) throw IoError("dem: " + Quote(path) + " has fewer than 2x2 posts");
+  if (GDALGetGeoTransform(ds, s.gt) != CE_None || s.gt[1] == 0.0 || s.gt[5] == 0.0)
+    throw IoError("dem: " + Quote(path) + " has no georeference (geotransform)");
+  OGRSpatialReferenceH srs = GDALGetSpatialRef(ds);
+  if (srs == nullptr) throw IoError("dem: " + Quote(path) + " has no coordinate reference system");
+  std::unique_ptr<void, SrsDeleter> src_srs(OSRClone(srs));
+  OSRSetAxisMappingStrategy(src_srs.get(), OAMS_TRADITIONAL_GIS_ORDER);
+  auto wgs84 = MakeWgs84();
+  const bool north_up = s.gt[2] == 0.0 && s.gt[4] == 0.0;
+  s.separable = north_up && OSRIsGeographic(src_srs.get()) && OSRIsSameGeogCS(src_srs.get(), wgs84.get());
+  if (!s.separable) {
+    s.to_wgs84.reset(OCTNewCoordinateTransformation(src_srs.get(), wgs84.get()));
+    s.from_wgs84.reset(OCTNewCoordinateTransformation(wgs84.get(), src_srs.get()));
+    if (!s.to_wgs84 || !s.from_wgs84)
+      throw IoError("dem: cannot transform the CRS of " + Quote(path) + " to WGS84: " + LastGdalMessage());
+  }
+  int has_nodata = 0;
+  const double nd = GDALGetRasterNoDataValue(GDALGetRasterBand(ds, 1), &has_nodata);
+  if (has_nodata) s.nodata = nd;
+  return s;
+}
+
+// Geo (x, y) in the source CRS of a pixel-centre position (col, row).
+void GeoOfPixel(const Source& s, double col, double row, double& x, double& y) {
+  const double px = col + 0.5, py = row + 0.5;
+  x = s.gt[0] + px * s.gt[1] + py * s.gt[2];
+  y = s.gt[3] + px * s.gt[4] + py * s.gt[5];
+}
+
+// Pixel-centre position of a geo (x, y); inverts the geotransform.
+void PixelOfGeo(const Source& s, double x, double y, double& col, double& row) {
+  const double det = s.gt[1] * s.gt[5] - s.gt[2] * s.gt[4];
+  const double dx = x - s.gt[0], dy = y - s.gt[3];
+  col = (s.gt[5] * dx - s.gt[2] * dy) / det - 0.5;
+  row = (-s.gt[4] * dx + s.gt[1] * dy) / det - 0.5;
+}
+
+struct PixelWindow {
+  int c0 = 0, r0 = 0, c1 = -1, r1 = -1;  // inclusive
+  bool empty() const { return c1 < c0 || r1 < r0; }
+  int w() const { return c1 - c0 + 1; }
+  int h() const { return r1 - r0 + 1; }
+};
+
+PixelWindow WindowOf(const Source& s, const GeodeticPoint& c, double radius_m) {
+  double cmin, cmax, rmin, rmax;
+  if (s.separable) {
+    const double dlat = radius_m / 110000.0 + 1e-9;
+    const double lat_hi = std::min(89.999, std::abs(c.lat_deg) + dlat);
+    const double dlon = std::min(180.0, radius_m / (111000.0 * std::cos(DegToRad(lat_hi))));
+    const double x_lo = c.lon_deg - dlon, x_hi = c.lon_deg + dlon;
+    // Bring the tile's longitudes next to the observer's (antimeridian).
+    const double tile_mid = s.gt[0] + s.gt[1] * s.width / 2;
+    const double shift = std::round((tile_mid - c.lon_deg) / 360.0) * 360.0;
+    cmin = s.ColOfX(x_lo + shift), cmax = s.ColOfX(x_hi + shift);
+    rmin = s.RowOfY(c.lat_deg + dlat), rmax = s.RowOfY(c.lat_deg - dlat);
+  } else {
+    double x = c.lon_deg, y = c.lat_deg, z = 0;
+    if (!OCTTransform(static_cast<OGRCoordinateTransformationH>(s.from_wgs84.get()), 1, &x, &y, &z))
+      return {};
+    double col, row;
+    PixelOfGeo(s, x, y, col, row);
+    // Metres per pixel along each axis, from the geotransform (projected CRS in metres).
+    const double px_m = std::min(std::hypot(s.gt[1], s.gt[4]), std::hypot(s.gt[2], s.gt[5]));
+    const double half = radius_m / px_m * 1.02 + 2.0;
+    cmin = col - half, cmax = col + half, rmin = row - half, rmax = row + half;
+  }
+  if (cmin > cmax) std::swap(cmin, cmax);
+  if (rmin > rmax) std::swap(rmin, rmax);
+  PixelWindow w;
+  w.c0 = static_cast<int>(std::max(0.0, std::floor(cmin) - 1));
+  w.c1 = static_cast<int>(std::min<double>(s.width - 1, std::ceil(cmax) + 1));
+  w.r0 = static_cast<int>(std::max(0.0, std::floor(rmin) - 1));
+  w.r1 = static_cast<int>(std::min<double>(s.height - 1, std::ceil(rmax) + 1));
+  if (cmax < 0 || rmax < 0 || cmin > s.width - 1 || rmin > s.height - 1) return {};
+  return w;
+}
+
+// Reads a window as float, nodata (and non-finite values) as kVoidSentinel.
+std::vector<float> ReadPosts(const Source& s, const PixelWindow& w) {
+  std::vector<float> buf(static_cast<size_t>(w.w()) * w.h());
+  CPLErrorReset();
+  if (GDALRasterIO(GDALGetRasterBand(static_cast<GDALDatasetH>(s.dataset.get()), 1), GF_Read, w.c0, w.r0, w.w(),
+                   w.h(), buf.data(), w.w(), w.h(), GDT_Float32, 0, 0) != CE_None)
+    throw IoError("dem: cannot read " + Quote(s.path) + ": " + LastGdalMessage());
+  const float nd = s.nodata ? static_cast<float>(*s.nodata) : 0.0f;
+  for (float& v : buf) {
+    if (!std::isfinite(v) || (s.nodata && v == nd) || v < -12000.0f || v > 10000.0f) v = kVoidSentinel;
+  }
+  return buf;
+}
+
+// Fills voids (kVoidSentinel) of a w x h buffer with GDALFillNodata where
+// covered[i]; leaves NaN where not covered or not fillable.
+void FillVoids(std::vector<float>& buf, const std::vector<uint8_t>& covered, int w, int h,
+               const std::string& what) {
+  bool any_void = false, any_data = false;
+  for (size_t i = 0; i < buf.size(); ++i) {
+    if (buf[i] == kVoidSentinel) {
+      any_void = any_void || covered[i];
+    } else {
+      any_data = true;
+    }
+  }
+  if (any_void && any_data) {
+    GDALDriverH mem = GDALGetDriverByName("MEM");
+    GDALDatasetH ds = GDALCreate(mem, "", w, h, 1, GDT_Float32, nullptr);
+    GDALRasterBandH band = GDALGetRasterBand(ds, 1);
+    GDALSetRasterNoDataValue(band, kVoidSentinel);
+    CPLErr err = GDALRasterIO(band, GF_Write, 0, 0, w, h, buf.data(), w, h, GDT_Float32, 0, 0);
+    if (err == CE_None) err = GDALFillNodata(band, nullptr, kMaxVoidFillPx, 0, 0, nullptr, nullptr, nullptr);
+    if (err == CE_None) err = GDALRasterIO(band, GF_Read, 0, 0, w, h, buf.data(), w, h, GDT_Float32, 0, 0);
+    GDALClose(ds);
+    if (err != CE_None) throw IoError("dem: cannot fill voids of " + what + ": " + LastGdalMessage());
+  }
+  for (size_t i = 0; i < buf.size(); ++i) {
+    if (buf[i] == kVoidSentinel || !covered[i]) buf[i] = NAN;
+  }
+}
+
+bool SameLattice(const Source& a, const Source& b) {
+  auto close = [](double x, double y) { return std::abs(x - y) <= 1e-6 * std::abs(x); };
+  if (!a.separable || !b.separable || !close(a.gt[1], b.gt[1]) || !close(a.gt[5], b.gt[5])) return false;
+  const double fc = (b.gt[0] - a.gt[0]) / a.gt[1], fr = (b.gt[3] - a.gt[3]) / a.gt[5];
+  return std::abs(fc - std::round(fc)) < 1e-3 && std::abs(fr - std::round(fr)) < 1e-3;
+}
+
+}  // namespace
+
+struct Terrain::Impl {
+  std::vector<Source> sources;
+  std::vector<std::string> paths;
+};
+
+Terrain::Terrain(const std::vector<std::string>& paths) : impl_(std::make_unique<Impl>()) {
+  if (paths.empty()) throw InvalidArgument("dem: no DEM file given");
+  InitGdalOnce();
+  impl_->paths = paths;
+  for (const auto& p : paths) impl_->sources.push_back(OpenSource(p));
+}
+Terrain::~Terrain() = default;
+Terrain::Terrain(Terrain&&) noexcept = default;
+Terrain& Terrain::operator=(Terrain&&) noexcept = default;
+
+const std::vector<std::string>& Terrain::paths() const { return impl_->paths; }
+
+bool Terrain::Covers(double lat_deg, double lon_deg) const {
+  for (const Source& s : impl_->sources) {
+    PixelWindow w = WindowOf(s, {lat_deg, lon_deg, 0.0}, 0.0);
+    if (w.empty()) continue;
+    double col, row;
+    if (s.separable) {
+      const double tile_mid = s.gt[0] + s.gt[1] * s.width / 2;
+      const double lon = lon_deg + std::round((tile_mid - lon_deg) / 360.0) * 360.0;
+      col = s.ColOfX(lon), row = s.RowOfY(lat_deg);
+    } else {
+      double x = lon_deg, y = lat_deg, z = 0;
+      OCTTransform(static_cast<OGRCoordinateTransformationH>(s.from_wgs84.get()), 1, &x, &y, &z);
+      PixelOfGeo(s, x, y, col, row);
+    }
+    if (col >= -1e-9 && row >= -1e-9 && col <= s.width - 1 + 1e-9 && row <= s.height - 1 + 1e-9) return true;
+  }
+  return false;
+}
+
+GeodeticPoint Terrain::CenterOf(size_t i) const {
+  HR_CHECK(i < impl_->sources.size()) << "file index " << i;
+  const Source& s = impl_->sources[i];
+  double x, y, z = 0;
+  GeoOfPixel(s, (s.width - 1) / 2, (s.height - 1) / 2, x, y);
+  if (!s.separable) OCTTransform(static_cast<OGRCoordinateTransformationH>(s.to_wgs84.get()), 1, &x, &y, &z);
+  return {y, x, 0.0};
+}
+
+TerrainWindow Terrain::ReadWindow(const GeodeticPoint& center, double radius_m) const {
+  if (!(radius_m > 0.0) || !std::isfinite(radius_m)) {
+    std::ostringstream m;
+    m << "dem: window radius " << radius_m << " m must be positive and finite";
+    throw InvalidArgument(m.str());
+  }
+  if (!Covers(center.lat_deg, center.lon_deg)) {
+    std::ostringstream m;
+    m.precision(8);
+    m << "observer (" << center.lat_deg << ", " << center.lon_deg << ") is outside every DEM";
+    for (const auto& p : impl_->paths) m << " " << Quote(p);
+    throw InvalidArgument(m.str());
+  }
+  const auto& sources = impl_->sources;
+  std::vector<PixelWindow> windows;
+  for (const Source& s : sources) windows.push_back(WindowOf(s, center, radius_m));
+
+  TerrainWindow out;
+  std::vector<bool> done(sources.size(), false);
+  for (size_t i = 0; i < sources.size(); ++i) {
+    if (done[i] || windows[i].empty()) continue;
+    const Source& a = sources[i];
+    if (a.separable) {
+      // Mosaic every source on a's lattice: union window in a's pixel frame.
+      std::vector<size_t> group;
+      double c0 = 1e300, r0 = 1e300, c1 = -1e300, r1 = -1e300;
+      for (size_t j = i; j < sources.size(); ++j) {
+        if (done[j] || windows[j].empty() || !SameLattice(a, sources[j])) continue;
+        const Source& b = sources[j];
+        const double oc = std::round((b.gt[0] - a.gt[0]) / a.gt[1]), orow = std::round((b.gt[3] - a.gt[3]) / a.gt[5]);
+        c0 = std::min(c0, windows[j].c0 + oc), c1 = std::max(c1, windows[j].c1 + oc);
+        r0 = std::min(r0, windows[j].r0 + orow), r1 = std::max(r1, windows[j].r1 + orow);
+        group.push_back(j);
+        done[j] = true;
+      }
+      DemGrid g;
+      g.width = static_cast<int>(c1 - c0 + 1), g.height = static_cast<int>(r1 - r0 + 1);
+      g.separable = true;
+      g.dlon_deg = a.gt[1], g.dlat_deg = a.gt[5];
+      g.lon0_deg = a.gt[0] + (c0 + 0.5) * a.gt[1];
+      g.lat0_deg = a.gt[3] + (r0 + 0.5) * a.gt[5];
+      std::vector<float> buf(static_cast<size_t>(g.width) * g.height, kVoidSentinel);
+      std::vector<uint8_t> covered(buf.size(), 0);
+      for (size_t j : group) {
+        const Source& b = sources[j];
+        const PixelWindow& w = windows[j];
+        std::vector<float> part = ReadPosts(b, w);
+        const int oc = static_cast<int>(std::round((b.gt[0] - a.gt[0]) / a.gt[1]) + w.c0 - c0);
+        const int orow = static_cast<int>(std::round((b.gt[3] - a.gt[3]) / a.gt[5]) + w.r0 - r0);
+        for (int r = 0; r < w.h(); ++r) {
+          for (int c = 0; c < w.w(); ++c) {
+            const size_t k = static_cast<size_t>(r + orow) * g.width + (c + oc);
+            const float v = part[static_cast<size_t>(r) * w.w() + c];
+            covered[k] = 1;
+            if (buf[k] == kVoidSentinel) buf[k] = v;
+          }
+        }
+        g.source += (g.source.empty() ? "" : "+") + b.path;
+      }
+      FillVoids(buf, covered, g.width, g.height, Quote(g.source));
+      g.height_m = std::move(buf);
+      // Longitudes continuous from the observer's side of the antimeridian.
+      g.lon0_deg += std::round((center.lon_deg - (g.lon0_deg + g.dlon_deg * g.width / 2)) / 360.0) * 360.0;
+      out.grids.push_back(std::move(g));
+    } else {
+      done[i] = true;
+      const PixelWindow& w = windows[i];
+      DemGrid g;
+      g.width = w.w(), g.height = w.h();
+      g.separable = false;
+      g.source = a.path;
+      std::vector<float> buf = ReadPosts(a, w);
+      FillVoids(buf, std::vector<uint8_t>(buf.size(), 1), g.width, g.height, Quote(a.path));
+      g.height_m = std::move(buf);
+      g.lon_deg.resize(g.height_m.size());
+      g.lat_deg.resize(g.height_m.size());
+      std::vector<double> z(g.height_m.size(), 0.0);
+      for (int r = 0; r < g.height; ++r)
+        for (int c = 0; c < g.width; ++c) {
+          const size_t k = static_cast<size_t>(r) * g.width + c;
+          GeoOfPixel(a, w.c0 + c, w.r0 + r, g.lon_deg[k], g.lat_deg[k]);
+        }
+      if (!OCTTransform(static_cast<OGRCoordinateTransformationH>(a.to_wgs84.get()), static_cast<int>(z.size()),
+                        g.lon_deg.data(), g.lat_deg.data(), z.data()))
+        throw IoError("dem: cannot transform the posts of " + Quote(a.path) + " to WGS84: " + LastGdalMessage());
+      g.IndexPositions();
+      out.grids.push_back(std::move(g));
+    }
+  }
+  bool any = false;
+  for (const DemGrid& g : out.grids)
+    for (float v : g.height_m) any = any || std::isfinite(v);
+  if (!any) {
+    std::ostringstream m;
+    m << "dem: no elevation data (all voids) within " << radius_m / 1000.0 << " km of (" << center.lat_deg << ", "
+      << center.lon_deg << ")";
+    throw InvalidArgument(m.str());
+  }
+  return out;
+}
+
+std::optional<double> TerrainWindow::HeightAt(double lat_deg, double lon_deg) const {
+  for (const DemGrid& g : grids) {
+    if (auto h = g.HeightAt(lat_deg, lon_deg)) return h;
+  }
+  return std::nullopt;
+}
+
+}  // namespace horizonreg

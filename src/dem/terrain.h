@@ -1,0 +1,72 @@
+// SPDX-License-Identifier: MIT
+// Terrain: one or several elevation rasters opened through GDAL, read as
+// in-memory windows around an observer.
+//
+// Formats: everything GDAL reads (SRTM HGT 1" and 3", DTED, USGS DEM ASCII
+// 7.5-minute and 1-degree, GeoTIFF, VRT, VTP BT, ...), in a geographic or a
+// projected CRS, plus matplotlib's sample-data layout `.npz` (arrays
+// elevation, xmin, xmax, ymin, ymax with ymin the northern edge and row 0 the
+// northern row; see dem/npz_dem.h).
+//
+// Mosaics: files on the same geographic lattice (e.g. adjacent SRTM tiles,
+// which share their edge posts) are merged into one grid, so the surface is
+// continuous across tile edges and a ridge on the next tile is not lost
+// (paper, Fig. 7). Files on other lattices or in projected CRSs become grids
+// of their own; the horizon takes the maximum over grids.
+//
+// Voids (nodata, SRTM holes) are filled by GDALFillNodata (inverse-distance
+// interpolation, up to kMaxVoidFillPx posts from valid data) within the area a
+// file covers; posts outside every file stay NaN.
+//
+// Surface: the bilinear interpolation of the posts (dem/dem_grid.h).
+// Thread safety: a Terrain must not be used from two threads at once (GDAL
+// dataset handles are not thread-safe). The DemGrids it returns are plain
+// values, safe to share read-only.
+#pragma once
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "dem/dem_grid.h"
+#include "geo/geodesy.h"
+
+namespace horizonreg {
+
+inline constexpr double kMaxVoidFillPx = 200.0;
+
+// The posts of all grids within a distance of a centre point.
+struct TerrainWindow {
+  std::vector<DemGrid> grids;
+  // Bilinear height at a position, from the first grid that has data there.
+  std::optional<double> HeightAt(double lat_deg, double lon_deg) const;
+};
+
+class Terrain {
+ public:
+  // Opens every file (metadata only; heights are read by ReadWindow).
+  // Throws IoError naming the file when it is missing, unreadable, not a
+  // raster or has no usable georeference; InvalidArgument if `paths` is empty.
+  explicit Terrain(const std::vector<std::string>& paths);
+  ~Terrain();
+  Terrain(Terrain&&) noexcept;
+  Terrain& operator=(Terrain&&) noexcept;
+
+  // Reads the posts within `radius_m` of `center` (plus one post of margin),
+  // mosaics and fills voids. Throws InvalidArgument when no file covers the
+  // centre position (observer outside every DEM) or the window holds no data
+  // (all voids); IoError on read failures.
+  TerrainWindow ReadWindow(const GeodeticPoint& center, double radius_m) const;
+
+  // True if some file's extent contains the position (its data may be void).
+  bool Covers(double lat_deg, double lon_deg) const;
+  // WGS84 position of the centre post of file i (0 <= i < paths().size()).
+  GeodeticPoint CenterOf(size_t i) const;
+  const std::vector<std::string>& paths() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace horizonreg

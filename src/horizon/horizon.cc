@@ -1,0 +1,251 @@
+// SPDX-License-Identifier: MIT
+#include "horizon/horizon.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <sstream>
+
+#include "horizon/sweep.h"
+#include "util/errors.h"
+
+namespace horizonreg {
+namespace {
+
+using internal::SweepPoint;
+using internal::SweepSetup;
+
+template <typename T>
+[[noreturn]] void ThrowField(const char* field, T value, const char* rule) {
+  std::ostringstream m;
+  m << field << " = " << value << "; violated: " << rule;
+  throw InvalidArgument(m.str());
+}
+
+// Per-bin maxima of one thread.
+class HorizonAccumulator {
+ public:
+  HorizonAccumulator(const SweepSetup& setup) : setup_(&setup), best_(setup.num_sectors) {}
+
+  void Post(const SweepPoint& p) { Update(p.sector, p); }
+
+  void Edge(const SweepPoint& p, const SweepPoint& q) {
+    if (p.sector == q.sector) return;
+    // Stationary point of w(t) / r(t) on the edge (closed form, see header).
+    const double a = p.w, b = q.w - p.w;
+    const double ve = q.e - p.e, vn = q.n - p.n;
+    const double c = p.e * p.e + p.n * p.n, dd = p.e * ve + p.n * vn, ee = ve * ve + vn * vn;
+    const double den = b * dd - a * ee;
+    double t_star = den != 0.0 ? (a * dd - b * c) / den : -1.0;
+    if (!(t_star > 0.0 && t_star < 1.0)) t_star = -1.0;
+    int last_sector = p.sector;
+    const bool walked = internal::WalkCrossings(*setup_, p, q, [&](int, double t, int before, int after) {
+      const SweepPoint x = internal::Lerp(p, q, t);
+      Update(before, x);
+      Update(after, x);
+      if (t_star >= 0.0) {
+        if (t_star <= t) {
+          Update(before, internal::Lerp(p, q, t_star));
+          t_star = -1.0;
+        }
+      }
+      last_sector = after;
+    });
+    if (walked && t_star >= 0.0) Update(last_sector, internal::Lerp(p, q, t_star));
+  }
+
+  // The bilinear surface inside a cell, along each boundary ray that cuts
+  // it: w is quadratic along the chord and r linear, so the maximum of w / r
+  // is at the chord's ends (the edge crossings, counted in Edge) or at a
+  // root of C R1 s^2 + 2 C R0 s + (B R0 - A R1) = 0.
+  void Quad(const SweepPoint& a, const SweepPoint& b, const SweepPoint& c, const SweepPoint& d) {
+    if (a.sector == b.sector && a.sector == c.sector && a.sector == d.sector) return;
+    // Upper bound of w / r over the cell, to skip cells that cannot matter.
+    const double twist = a.w - b.w - c.w + d.w;
+    const double w_max = std::max({a.w, b.w, c.w, d.w}) + 0.25 * std::abs(twist);
+    const double diag = std::max(std::hypot(a.e - d.e, a.n - d.n), std::hypot(b.e - c.e, b.n - c.n));
+    const double r_min = std::min({a.d, b.d, c.d, d.d}) - diag;
+    const double r_max = std::max({a.d, b.d, c.d, d.d}) + diag;
+    const double bound = w_max >= 0.0 ? (r_min > 0.0 ? w_max / r_min : INFINITY) : w_max / r_max;
+    internal::CellRays(*setup_, a, b, c, d, [&](int ray, int before, int after) {
+      if (bound <= std::min(best_[before].tan_el, best_[after].tan_el)) return;
+      Chord(a, b, c, d, ray, before, after);
+    });
+  }
+
+  void MergeFrom(const HorizonAccumulator& other) {
+    for (size_t i = 0; i < best_.size(); ++i)
+      if (other.best_[i].tan_el > best_[i].tan_el) best_[i] = other.best_[i];
+  }
+  struct Best {
+    double tan_el = -std::numeric_limits<double>::infinity();
+    double d = NAN, e = 0, n = 0, u = 0, h = NAN;
+  };
+  const std::vector<Best>& best() const { return best_; }
+
+ private:
+  void Update(int s, const SweepPoint& x) {
+    Best& b = best_[s];
+    if (x.tan_el > b.tan_el) b = {x.tan_el, x.d, x.e, x.n, x.u, x.h};
+  }
+  void Chord(const SweepPoint& a, const SweepPoint& b, const SweepPoint& c, const SweepPoint& d, int ray,
+             int before, int after) {
+    const double ue = setup_->ray_sin[ray], un = setup_->ray_cos[ray];
+    // Entry and exit of the ray through the cell's four edges, in cell
+    // coordinates (fx east along a-b, fy south along a-c).
+    struct Hit {
+      double fx, fy, r;
+    } hits[2];
+    int count = 0;
+    auto edge = [&](const SweepPoint& p, const SweepPoint& q, double fx0, double fy0, double dfx, double dfy) {
+      const double ve = q.e - p.e, vn = q.n - p.n;
+      const double denom = ue * vn - un * ve;
+      if (denom == 0.0 || count == 2) return;
+      const double t = -(ue * p.n - un * p.e) / denom;
+      if (!(t >= 0.0 && t <= 1.0)) return;
+      const double r = ue * (p.e + t * ve) + un * (p.n + t * vn);  // along the ray
+      if (r <= 0.0) return;
+      hits[count++] = {fx0 + t * dfx, fy0 + t * dfy, r};
+    };
+    edge(a, b, 0, 0, 1, 0);
+    edge(c, d, 0, 1, 1, 0);
+    edge(a, c, 0, 0, 0, 1);
+    edge(b, d, 1, 0, 0, 1);
+    if (count < 2) return;
+    auto bilinear = [&](double fx, double fy, double va, double vb, double vc, double vd) {
+      return (1 - fy) * ((1 - fx) * va + fx * vb) + fy * ((1 - fx) * vc + fx * vd);
+    };
+    auto w_at = [&](double s) {
+      const double fx = hits[0].fx + s * (hits[1].fx - hits[0].fx), fy = hits[0].fy + s * (hits[1].fy - hits[0].fy);
+      return bilinear(fx, fy, a.w, b.w, c.w, d.w);
+    };
+    const double w0 = w_at(0.0), wh = w_at(0.5), w1 = w_at(1.0);
+    const double cc = 2.0 * (w1 + w0 - 2.0 * wh), bb = w1 - w0 - cc;
+    const double r0 = hits[0].r, r1 = hits[1].r - hits[0].r;
+    if (std::abs(cc) < 1e-9) return;  // linear along the chord: maximum at an end
+    // C R1 s^2 + 2 C R0 s + (B R0 - A R1) = 0
+    const double qa = cc * r1, qb = 2.0 * cc * r0, qc = bb * r0 - w0 * r1;
+    double roots[2];
+    int nroots = 0;
+    if (std::abs(qa) < 1e-12 * std::abs(qb)) {
+      roots[nroots++] = -qc / qb;
+    } else {
+      const double disc = qb * qb - 4.0 * qa * qc;
+      if (disc < 0.0) return;
+      const double sq = std::sqrt(disc);
+      roots[nroots++] = (-qb + sq) / (2.0 * qa);
+      roots[nroots++] = (-qb - sq) / (2.0 * qa);
+    }
+    for (int i = 0; i < nroots; ++i) {
+      const double s = roots[i];
+      if (!(s > 0.0 && s < 1.0)) continue;
+      const double fx = hits[0].fx + s * (hits[1].fx - hits[0].fx), fy = hits[0].fy + s * (hits[1].fy - hits[0].fy);
+      SweepPoint x;
+      x.w = w0 + bb * s + cc * s * s;
+      x.d = r0 + r1 * s;
+      x.tan_el = x.w / x.d;
+      x.e = ue * x.d;
+      x.n = un * x.d;
+      x.u = bilinear(fx, fy, a.u, b.u, c.u, d.u);
+      x.h = bilinear(fx, fy, a.h, b.h, c.h, d.h);
+      Update(before, x);
+      Update(after, x);
+    }
+  }
+
+  const SweepSetup* setup_;
+  std::vector<Best> best_;
+};
+
+}  // namespace
+
+void HorizonOptions::Check() const {
+  if (!(azimuth_step_deg > 0.0) || !(azimuth_step_deg <= 90.0))
+    ThrowField("HorizonOptions::azimuth_step_deg", azimuth_step_deg, "0 < step <= 90");
+  const double n = 360.0 / azimuth_step_deg;
+  if (std::abs(n - std::round(n)) > 1e-6 * n)
+    ThrowField("HorizonOptions::azimuth_step_deg", azimuth_step_deg, "360 / step is a whole number");
+  if (n > 3'600'000) ThrowField("HorizonOptions::azimuth_step_deg", azimuth_step_deg, "step >= 0.0001");
+  if (!(max_distance_m > 0.0) || !std::isfinite(max_distance_m) || max_distance_m > 2'000'000.0)
+    ThrowField("HorizonOptions::max_distance_m", max_distance_m, "0 < max_distance_m <= 2000 km");
+  if (!(min_distance_m >= 0.0) || !(min_distance_m < max_distance_m))
+    ThrowField("HorizonOptions::min_distance_m", min_distance_m, "0 <= min_distance_m < max_distance_m");
+  if (!(refraction >= -1.0 && refraction <= 1.0)) ThrowField("HorizonOptions::refraction", refraction, "-1 <= k <= 1");
+  if (num_threads < 1 || num_threads > 256) ThrowField("HorizonOptions::num_threads", num_threads, "1..256");
+}
+
+int HorizonOptions::NumBins() const { return static_cast<int>(std::lround(360.0 / azimuth_step_deg)); }
+
+void RidgeOptions::Check() const {
+  if (!(min_depth_ratio >= 0.0)) ThrowField("RidgeOptions::min_depth_ratio", min_depth_ratio, ">= 0");
+  if (!(min_depth_spacings >= 0.0)) ThrowField("RidgeOptions::min_depth_spacings", min_depth_spacings, ">= 0");
+  if (!(min_distance_spacings >= 0.0))
+    ThrowField("RidgeOptions::min_distance_spacings", min_distance_spacings, ">= 0");
+  if (!(min_separation_deg >= 0.0)) ThrowField("RidgeOptions::min_separation_deg", min_separation_deg, ">= 0");
+}
+
+double HorizonProfile::ElevationAtDeg(double azimuth_deg) const {
+  if (elevation_deg.empty()) return NAN;
+  const double x = WrapAzimuthDeg(azimuth_deg) / azimuth_step_deg;
+  const int i0 = static_cast<int>(std::floor(x)) % size();
+  const int i1 = (i0 + 1) % size();
+  const double f = x - std::floor(x);
+  return (1 - f) * elevation_deg[i0] + f * elevation_deg[i1];
+}
+
+GeodeticPoint ResolveObserver(const TerrainWindow& terrain, double lat_deg, double lon_deg,
+                              std::optional<double> agl_m, std::optional<double> alt_m) {
+  if (!std::isfinite(lat_deg) || lat_deg < -90.0 || lat_deg > 90.0)
+    ThrowField("latitude", lat_deg, "-90 <= lat <= 90");
+  if (!std::isfinite(lon_deg) || lon_deg < -180.0 || lon_deg > 360.0)
+    ThrowField("longitude", lon_deg, "-180 <= lon <= 360");
+  if (agl_m && alt_m) throw InvalidArgument("give either a height above ground (agl) or an altitude, not both");
+  if (agl_m && (!std::isfinite(*agl_m) || *agl_m < -100.0 || *agl_m > 100000.0))
+    ThrowField("agl", *agl_m, "-100 <= agl <= 100000 m");
+  if (alt_m && (!std::isfinite(*alt_m) || *alt_m < -1000.0 || *alt_m > 100000.0))
+    ThrowField("alt", *alt_m, "-1000 <= alt <= 100000 m");
+  const std::optional<double> ground = terrain.HeightAt(lat_deg, lon_deg);
+  if (!ground) {
+    std::ostringstream m;
+    m << "observer (" << lat_deg << ", " << lon_deg << ") has no DEM data under it";
+    throw InvalidArgument(m.str());
+  }
+  return {lat_deg, lon_deg, alt_m ? *alt_m : *ground + agl_m.value_or(kDefaultEyeHeightM)};
+}
+
+HorizonProfile ComputeHorizon(const TerrainWindow& terrain, const GeodeticPoint& observer,
+                              const HorizonOptions& options) {
+  options.Check();
+  const LocalFrame frame(observer);
+  const int n = options.NumBins();
+  const SweepSetup setup =
+      internal::MakeSweepSetup(n, 0.5, options.min_distance_m, options.max_distance_m, options.refraction);
+  auto accs = internal::SweepGrids<HorizonAccumulator>(terrain.grids, frame, setup, options.num_threads,
+                                                       [&] { return HorizonAccumulator(setup); });
+  for (size_t i = 1; i < accs.size(); ++i) accs[0].MergeFrom(accs[i]);
+
+  HorizonProfile out;
+  out.observer = observer;
+  out.ground_height_m = terrain.HeightAt(observer.lat_deg, observer.lon_deg).value_or(NAN);
+  out.azimuth_step_deg = 360.0 / n;
+  out.refraction = options.refraction;
+  out.elevation_deg.assign(n, NAN);
+  out.distance_m.assign(n, NAN);
+  out.lat_deg.assign(n, NAN);
+  out.lon_deg.assign(n, NAN);
+  out.height_m.assign(n, NAN);
+  const auto& best = accs[0].best();
+  for (int i = 0; i < n; ++i) {
+    const auto& b = best[i];
+    if (!std::isfinite(b.tan_el)) continue;
+    out.elevation_deg[i] = RadToDeg(std::atan(b.tan_el));
+    out.distance_m[i] = b.d;
+    const GeodeticPoint g = frame.GeodeticFromEnu({b.e, b.n, b.u});
+    out.lat_deg[i] = g.lat_deg;
+    out.lon_deg[i] = g.lon_deg;
+    out.height_m[i] = b.h;
+  }
+  return out;
+}
+
+}  // namespace horizonreg

@@ -1,0 +1,255 @@
+// SPDX-License-Identifier: MIT
+// Internal: the pass over DEM posts and grid edges shared by the horizon and
+// the ridge lines. Not a public header.
+#pragma once
+
+#include <algorithm>
+#include <cmath>
+#include <thread>
+#include <vector>
+
+#include "dem/dem_grid.h"
+#include "geo/geodesy.h"
+
+namespace horizonreg::internal {
+
+// atan2(y, x) in radians, |error| < 2e-7 rad: range reduction to |z| <=
+// tan(pi/8) and the odd Taylor series to z^13 (remainder < z^15/15).
+inline double FastAtan2(double y, double x) {
+  const double ax = std::abs(x), ay = std::abs(y);
+  const double mx = std::max(ax, ay), mn = std::min(ax, ay);
+  if (mx == 0.0) return 0.0;
+  double a = mn / mx;
+  double offset = 0.0;
+  if (a > 0.41421356237309503) {
+    a = (a - 1.0) / (a + 1.0);
+    offset = 0.78539816339744831;
+  }
+  const double z2 = a * a;
+  double r = a * (1.0 + z2 * (-1.0 / 3 + z2 * (1.0 / 5 + z2 * (-1.0 / 7 + z2 * (1.0 / 9 + z2 * (-1.0 / 11 + z2 / 13))))));
+  r += offset;
+  if (ay > ax) r = 1.5707963267948966 - r;
+  if (x < 0.0) r = 3.141592653589793 - r;
+  return y < 0.0 ? -r : r;
+}
+
+// A post (or a point on a grid edge) in the observer's frame.
+struct SweepPoint {
+  double e = 0, n = 0;  // horizontal ENU position, m
+  double u = 0;         // ENU up (geometric, no refraction), m
+  double w = 0;         // u + refraction lift, m
+  double d = 0;         // horizontal distance, m
+  double tan_el = 0;    // w / d
+  double h = 0;         // DEM height, m
+  int sector = -1;      // -1: not valid (void, too near or too far)
+};
+
+struct SweepSetup {
+  int num_sectors = 0;        // number of rays = sectors
+  double step_rad = 0;        // angular spacing
+  double sector_offset = 0;   // sector s covers azimuths [(s - o) step, (s + 1 - o) step)
+  double min_distance_m = 0;
+  double max_distance_m = 0;
+  double refraction = 0;
+  std::vector<double> ray_sin, ray_cos;  // ray b (boundary between sectors b-1 and b) at (b - o) step
+};
+
+inline SweepSetup MakeSweepSetup(int num_sectors, double offset, double min_d, double max_d, double k) {
+  SweepSetup s;
+  s.num_sectors = num_sectors;
+  s.step_rad = 2.0 * kPi / num_sectors;
+  s.sector_offset = offset;
+  s.min_distance_m = min_d;
+  s.max_distance_m = max_d;
+  s.refraction = k;
+  s.ray_sin.resize(num_sectors);
+  s.ray_cos.resize(num_sectors);
+  for (int b = 0; b < num_sectors; ++b) {
+    const double az = (b - offset) * s.step_rad;
+    s.ray_sin[b] = std::sin(az);
+    s.ray_cos[b] = std::cos(az);
+  }
+  return s;
+}
+
+// Point at parameter t on the edge from p to q (linear in e, n, u, w, h).
+inline SweepPoint Lerp(const SweepPoint& p, const SweepPoint& q, double t) {
+  SweepPoint x;
+  x.e = p.e + t * (q.e - p.e);
+  x.n = p.n + t * (q.n - p.n);
+  x.u = p.u + t * (q.u - p.u);
+  x.w = p.w + t * (q.w - p.w);
+  x.h = p.h + t * (q.h - p.h);
+  x.d = std::hypot(x.e, x.n);
+  x.tan_el = x.w / x.d;
+  return x;
+}
+
+// Calls handler.Post(p) for every valid post, handler.Edge(p, q) for every
+// grid edge between two valid posts, and handler.Quad(a, b, c, d) for every
+// cell with four valid corners (a, b on the northern row west to east, c, d
+// below them). Rows [row_begin, row_end) of `grid`; the row before row_begin
+// is computed for the edges and cells that join it.
+template <typename Handler>
+void SweepRows(const DemGrid& grid, const LocalFrame& frame, const SweepSetup& setup, int row_begin, int row_end,
+               Handler& handler) {
+  const GeodeticPoint& o = frame.origin();
+  const double sp0 = std::sin(DegToRad(o.lat_deg)), cp0 = std::cos(DegToRad(o.lat_deg));
+  const double n0 = kWgs84A / std::sqrt(1.0 - kWgs84E2 * sp0 * sp0);
+  const double x0 = (n0 + o.height_m) * cp0, z0 = (n0 * (1.0 - kWgs84E2) + o.height_m) * sp0;
+  const int w = grid.width;
+  std::vector<double> col_s, col_c;  // sin / cos of (lon - lon0), separable grids
+  if (grid.separable) {
+    col_s.resize(w);
+    col_c.resize(w);
+    for (int c = 0; c < w; ++c) {
+      const double dl = DegToRad(grid.lon0_deg + c * grid.dlon_deg - o.lon_deg);
+      col_s[c] = std::sin(dl);
+      col_c[c] = std::cos(dl);
+    }
+  }
+  const double inv_step = 1.0 / setup.step_rad;
+  const double two_pi = 2.0 * kPi;
+  const double lift_scale = setup.refraction / (2.0 * kRefractionEarthRadiusM);
+  const double min_d2 = setup.min_distance_m * setup.min_distance_m;
+  const double max_d2 = setup.max_distance_m * setup.max_distance_m;
+
+  auto compute_row = [&](int r, std::vector<SweepPoint>& row) {
+    double sp = 0, cp = 0, nr = 0;
+    if (grid.separable) {
+      const double lat = DegToRad(grid.lat0_deg + r * grid.dlat_deg);
+      sp = std::sin(lat), cp = std::cos(lat);
+      nr = kWgs84A / std::sqrt(1.0 - kWgs84E2 * sp * sp);
+    }
+    const float* hr = grid.height_m.data() + static_cast<size_t>(r) * w;
+    for (int c = 0; c < w; ++c) {
+      SweepPoint& p = row[c];
+      p.sector = -1;
+      const double h = hr[c];
+      if (!std::isfinite(h)) continue;
+      double sl, cl;
+      if (grid.separable) {
+        sl = col_s[c], cl = col_c[c];
+      } else {
+        const size_t k = static_cast<size_t>(r) * w + c;
+        const double lat = DegToRad(grid.lat_deg[k]);
+        const double dl = DegToRad(grid.lon_deg[k] - o.lon_deg);
+        sp = std::sin(lat), cp = std::cos(lat), sl = std::sin(dl), cl = std::cos(dl);
+        nr = kWgs84A / std::sqrt(1.0 - kWgs84E2 * sp * sp);
+      }
+      const double a = (nr + h) * cp;
+      const double dx = a * cl - x0;
+      const double dz = (nr * (1.0 - kWgs84E2) + h) * sp - z0;
+      p.e = a * sl;
+      p.n = -sp0 * dx + cp0 * dz;
+      p.u = cp0 * dx + sp0 * dz;
+      const double d2 = p.e * p.e + p.n * p.n;
+      if (d2 < min_d2 || d2 > max_d2) continue;
+      p.d = std::sqrt(d2);
+      p.w = p.u + lift_scale * d2;
+      p.tan_el = p.w / p.d;
+      p.h = h;
+      double az = FastAtan2(p.e, p.n);
+      if (az < 0.0) az += two_pi;
+      int s = static_cast<int>(std::floor(az * inv_step + setup.sector_offset));
+      if (s >= setup.num_sectors) s -= setup.num_sectors;
+      if (s < 0) s += setup.num_sectors;
+      p.sector = s;
+    }
+  };
+
+  std::vector<SweepPoint> prev(w), cur(w);
+  if (row_begin > 0) compute_row(row_begin - 1, prev);
+  for (int r = row_begin; r < row_end; ++r) {
+    compute_row(r, cur);
+    for (int c = 0; c < w; ++c) {
+      const SweepPoint& p = cur[c];
+      if (p.sector < 0) continue;
+      handler.Post(p);
+      if (c + 1 < w && cur[c + 1].sector >= 0) handler.Edge(p, cur[c + 1]);
+      if (r > 0 && prev[c].sector >= 0) handler.Edge(prev[c], p);
+      if (r > 0 && c + 1 < w && prev[c].sector >= 0 && prev[c + 1].sector >= 0 && cur[c + 1].sector >= 0)
+        handler.Quad(prev[c], prev[c + 1], p, cur[c + 1]);
+    }
+    std::swap(prev, cur);
+  }
+}
+
+// Walks the rays an edge p -> q crosses, in order, calling
+// visit(ray_index, t, sector_before, sector_after). Returns false when the
+// edge passes (nearly) through the observer and was not walked.
+template <typename Visit>
+bool WalkCrossings(const SweepSetup& setup, const SweepPoint& p, const SweepPoint& q, Visit&& visit) {
+  const int n = setup.num_sectors;
+  const double cross = p.e * q.n - p.n * q.e;
+  if (cross == 0.0) return false;
+  const int dir = cross < 0.0 ? 1 : -1;  // +1: azimuth increases from p to q
+  int count = dir > 0 ? q.sector - p.sector : p.sector - q.sector;
+  if (count < 0) count += n;
+  if (count >= n / 2 + 1) return false;  // inconsistent (edge at the observer)
+  const double ve = q.e - p.e, vn = q.n - p.n;
+  int s = p.sector;
+  for (int i = 0; i < count; ++i) {
+    const int next = dir > 0 ? (s + 1 == n ? 0 : s + 1) : (s == 0 ? n - 1 : s - 1);
+    const int ray = dir > 0 ? next : s;
+    const double ue = setup.ray_sin[ray], un = setup.ray_cos[ray];
+    const double denom = ue * vn - un * ve;
+    double t = denom != 0.0 ? -(ue * p.n - un * p.e) / denom : 0.5;
+    t = std::clamp(t, 0.0, 1.0);
+    visit(ray, t, s, next);
+    s = next;
+  }
+  return true;
+}
+
+// The rays crossing a cell with corners a, b, c, d: calls visit(ray,
+// sector_before, sector_after) for each. Returns false when the cell
+// surrounds the observer (it spans more than half the circle).
+template <typename Visit>
+bool CellRays(const SweepSetup& setup, const SweepPoint& a, const SweepPoint& b, const SweepPoint& c,
+              const SweepPoint& d, Visit&& visit) {
+  const int n = setup.num_sectors, half = n / 2;
+  auto rel = [&](int s) {
+    int k = s - a.sector;
+    if (k > half) k -= n;
+    if (k < -half) k += n;
+    return k;
+  };
+  const int kb = rel(b.sector), kc = rel(c.sector), kd = rel(d.sector);
+  const int lo = std::min({0, kb, kc, kd}), hi = std::max({0, kb, kc, kd});
+  if (hi - lo >= half) return false;
+  for (int k = lo + 1; k <= hi; ++k) {
+    int after = a.sector + k;
+    after = ((after % n) + n) % n;
+    const int before = after == 0 ? n - 1 : after - 1;
+    visit(after, before, after);
+  }
+  return true;
+}
+
+// Runs a sweep over every grid on `num_threads` threads, each with its own
+// handler made by make_handler(); returns the handlers for merging.
+template <typename Handler, typename Make>
+std::vector<Handler> SweepGrids(const std::vector<DemGrid>& grids, const LocalFrame& frame, const SweepSetup& setup,
+                                int num_threads, Make&& make_handler) {
+  std::vector<Handler> handlers;
+  for (int i = 0; i < num_threads; ++i) handlers.push_back(make_handler());
+  for (const DemGrid& grid : grids) {
+    if (grid.width < 2 || grid.height < 2) continue;
+    const int threads = std::min(num_threads, grid.height);
+    if (threads <= 1) {
+      SweepRows(grid, frame, setup, 0, grid.height, handlers[0]);
+      continue;
+    }
+    std::vector<std::thread> pool;
+    for (int t = 0; t < threads; ++t) {
+      const int r0 = static_cast<int>(static_cast<long>(grid.height) * t / threads);
+      const int r1 = static_cast<int>(static_cast<long>(grid.height) * (t + 1) / threads);
+      pool.emplace_back([&, r0, r1, t] { SweepRows(grid, frame, setup, r0, r1, handlers[t]); });
+    }
+    for (auto& th : pool) th.join();
+  }
+  return handlers;
+}
+
+}  // namespace horizonreg::internal
