@@ -189,42 +189,107 @@ PixelWindow WindowOf(const Source& s, const GeodeticPoint& c, double radius_m) {
   return w;
 }
 
-// Reads a window as float, nodata (and non-finite values) as kVoidSentinel.
-std::vector<float> ReadPosts(const Source& s, const PixelWindow& w) {
-  std::vector<float> buf(static_cast<size_t>(w.w()) * w.h());
+// Reads a window as float into dst (line stride dst_stride floats), nodata
+// and implausible values as kVoidSentinel.
+void ReadPosts(const Source& s, const PixelWindow& w, float* dst, size_t dst_stride) {
   CPLErrorReset();
   if (GDALRasterIO(GDALGetRasterBand(static_cast<GDALDatasetH>(s.dataset.get()), 1), GF_Read, w.c0, w.r0, w.w(),
-                   w.h(), buf.data(), w.w(), w.h(), GDT_Float32, 0, 0) != CE_None)
+                   w.h(), dst, w.w(), w.h(), GDT_Float32, 0, static_cast<GSpacing>(dst_stride * sizeof(float))) !=
+      CE_None)
     throw IoError("dem: cannot read " + Quote(s.path) + ": " + LastGdalMessage());
   const float nd = s.nodata ? static_cast<float>(*s.nodata) : 0.0f;
-  for (float& v : buf) {
-    if (!std::isfinite(v) || (s.nodata && v == nd) || v < -12000.0f || v > 10000.0f) v = kVoidSentinel;
-  }
-  return buf;
-}
-
-// Fills voids (kVoidSentinel) of a w x h buffer with GDALFillNodata where
-// covered[i]; leaves NaN where not covered or not fillable.
-void FillVoids(std::vector<float>& buf, const std::vector<uint8_t>& covered, int w, int h,
-               const std::string& what) {
-  bool any_void = false, any_data = false;
-  for (size_t i = 0; i < buf.size(); ++i) {
-    if (buf[i] == kVoidSentinel) {
-      any_void = any_void || covered[i];
-    } else {
-      any_data = true;
+  const bool has_nd = s.nodata.has_value();
+  for (int r = 0; r < w.h(); ++r) {
+    float* row = dst + r * dst_stride;
+    for (int c = 0; c < w.w(); ++c) {
+      const float v = row[c];
+      if (!(v >= -12000.0f && v <= 10000.0f) || (has_nd && v == nd)) row[c] = kVoidSentinel;
     }
   }
-  if (any_void && any_data) {
-    GDALDriverH mem = GDALGetDriverByName("MEM");
-    GDALDatasetH ds = GDALCreate(mem, "", w, h, 1, GDT_Float32, nullptr);
-    GDALRasterBandH band = GDALGetRasterBand(ds, 1);
-    GDALSetRasterNoDataValue(band, kVoidSentinel);
-    CPLErr err = GDALRasterIO(band, GF_Write, 0, 0, w, h, buf.data(), w, h, GDT_Float32, 0, 0);
-    if (err == CE_None) err = GDALFillNodata(band, nullptr, kMaxVoidFillPx, 0, 0, nullptr, nullptr, nullptr);
-    if (err == CE_None) err = GDALRasterIO(band, GF_Read, 0, 0, w, h, buf.data(), w, h, GDT_Float32, 0, 0);
-    GDALClose(ds);
-    if (err != CE_None) throw IoError("dem: cannot fill voids of " + what + ": " + LastGdalMessage());
+}
+
+// Fills voids (kVoidSentinel) of a w x h buffer where covered[i]: holes are
+// interpolated by one GDALFillNodata call (inverse distance). A void that
+// spans more than 2 * kMaxVoidFillPx posts is a missing area, not a hole: it
+// stays NaN, and so do holes next to it (their interpolation would lean on
+// nothing), and everything not covered.
+void FillVoids(std::vector<float>& buf, const std::vector<uint8_t>& covered, int w, int h,
+               const std::string& what) {
+  struct Box {
+    int c0, c1, r0, r1;
+  };
+  std::vector<Box> big, small;
+  std::vector<uint8_t> state(buf.size(), 0);  // 1: small void, 2: big void
+  std::vector<int> stack, members;
+  for (size_t start = 0; start < buf.size(); ++start) {
+    if (buf[start] != kVoidSentinel || !covered[start] || state[start]) continue;
+    Box b{w, -1, h, -1};
+    members.clear();
+    stack.assign(1, static_cast<int>(start));
+    state[start] = 1;
+    while (!stack.empty()) {
+      const int k = stack.back();
+      stack.pop_back();
+      members.push_back(k);
+      const int c = k % w, r = k / w;
+      b.c0 = std::min(b.c0, c), b.c1 = std::max(b.c1, c), b.r0 = std::min(b.r0, r), b.r1 = std::max(b.r1, r);
+      const int nb[4] = {c > 0 ? k - 1 : -1, c + 1 < w ? k + 1 : -1, r > 0 ? k - w : -1, r + 1 < h ? k + w : -1};
+      for (int q : nb)
+        if (q >= 0 && !state[q] && buf[q] == kVoidSentinel && covered[q]) state[q] = 1, stack.push_back(q);
+    }
+    if (b.c1 - b.c0 + 1 > 2 * kMaxVoidFillPx || b.r1 - b.r0 + 1 > 2 * kMaxVoidFillPx) {
+      for (int k : members) state[k] = 2;
+      big.push_back(b);
+    } else {
+      small.push_back(b);
+    }
+  }
+  if (!small.empty()) {
+    const int m = static_cast<int>(kMaxVoidFillPx);
+    Box fill{w, -1, h, -1};  // bounding box of the holes to fill
+    for (const Box& s : small) {
+      bool near_big = false;
+      for (const Box& b : big)
+        near_big = near_big || !(s.c1 + m < b.c0 || b.c1 + m < s.c0 || s.r1 + m < b.r0 || b.r1 + m < s.r0);
+      if (near_big) {  // leave it NaN: mark it like a big void
+        for (int r = s.r0; r <= s.r1; ++r)
+          for (int c = s.c0; c <= s.c1; ++c) {
+            const size_t k = static_cast<size_t>(r) * w + c;
+            if (state[k] == 1) state[k] = 2;
+          }
+      } else {
+        fill = {std::min(fill.c0, s.c0), std::max(fill.c1, s.c1), std::min(fill.r0, s.r0), std::max(fill.r1, s.r1)};
+      }
+    }
+    if (fill.c1 >= 0) {
+      // Work on the holes' bounding box plus the search distance. Big voids
+      // and uncovered posts get a placeholder value there: no hole is within
+      // reach of them.
+      const int c0 = std::max(0, fill.c0 - m), c1 = std::min(w - 1, fill.c1 + m);
+      const int r0 = std::max(0, fill.r0 - m), r1 = std::min(h - 1, fill.r1 + m);
+      const int ww = c1 - c0 + 1, wh = r1 - r0 + 1;
+      std::vector<float> work(static_cast<size_t>(ww) * wh);
+      for (int r = 0; r < wh; ++r)
+        for (int c = 0; c < ww; ++c) {
+          const size_t k = static_cast<size_t>(r + r0) * w + (c + c0);
+          const bool placeholder = state[k] == 2 || (!covered[k] && buf[k] == kVoidSentinel);
+          work[static_cast<size_t>(r) * ww + c] = placeholder ? 0.0f : buf[k];
+        }
+      GDALDriverH mem = GDALGetDriverByName("MEM");
+      GDALDatasetH ds = GDALCreate(mem, "", ww, wh, 1, GDT_Float32, nullptr);
+      GDALRasterBandH band = GDALGetRasterBand(ds, 1);
+      GDALSetRasterNoDataValue(band, kVoidSentinel);
+      CPLErr err = GDALRasterIO(band, GF_Write, 0, 0, ww, wh, work.data(), ww, wh, GDT_Float32, 0, 0);
+      if (err == CE_None) err = GDALFillNodata(band, nullptr, kMaxVoidFillPx, 0, 0, nullptr, nullptr, nullptr);
+      if (err == CE_None) err = GDALRasterIO(band, GF_Read, 0, 0, ww, wh, work.data(), ww, wh, GDT_Float32, 0, 0);
+      GDALClose(ds);
+      if (err != CE_None) throw IoError("dem: cannot fill voids of " + what + ": " + LastGdalMessage());
+      for (int r = 0; r < wh; ++r)
+        for (int c = 0; c < ww; ++c) {
+          const size_t k = static_cast<size_t>(r + r0) * w + (c + c0);
+          if (state[k] == 1) buf[k] = work[static_cast<size_t>(r) * ww + c];
+        }
+    }
   }
   for (size_t i = 0; i < buf.size(); ++i) {
     if (buf[i] == kVoidSentinel || !covered[i]) buf[i] = NAN;
@@ -328,20 +393,27 @@ TerrainWindow Terrain::ReadWindow(const GeodeticPoint& center, double radius_m) 
       g.lat0_deg = a.gt[3] + (r0 + 0.5) * a.gt[5];
       std::vector<float> buf(static_cast<size_t>(g.width) * g.height, kVoidSentinel);
       std::vector<uint8_t> covered(buf.size(), 0);
+      std::vector<float> part;
       for (size_t j : group) {
         const Source& b = sources[j];
         const PixelWindow& w = windows[j];
-        std::vector<float> part = ReadPosts(b, w);
         const int oc = static_cast<int>(std::round((b.gt[0] - a.gt[0]) / a.gt[1]) + w.c0 - c0);
         const int orow = static_cast<int>(std::round((b.gt[3] - a.gt[3]) / a.gt[5]) + w.r0 - r0);
-        for (int r = 0; r < w.h(); ++r) {
-          for (int c = 0; c < w.w(); ++c) {
-            const size_t k = static_cast<size_t>(r + orow) * g.width + (c + oc);
-            const float v = part[static_cast<size_t>(r) * w.w() + c];
-            covered[k] = 1;
-            if (buf[k] == kVoidSentinel) buf[k] = v;
-          }
+        float* dst = buf.data() + static_cast<size_t>(orow) * g.width + oc;
+        if (j == group.front()) {
+          ReadPosts(b, w, dst, g.width);  // straight into the mosaic
+        } else {
+          // Tiles share edge posts: keep what is there unless it is void.
+          part.resize(static_cast<size_t>(w.w()) * w.h());
+          ReadPosts(b, w, part.data(), w.w());
+          for (int r = 0; r < w.h(); ++r)
+            for (int c = 0; c < w.w(); ++c) {
+              float& v = dst[static_cast<size_t>(r) * g.width + c];
+              if (v == kVoidSentinel) v = part[static_cast<size_t>(r) * w.w() + c];
+            }
         }
+        for (int r = 0; r < w.h(); ++r)
+          std::fill_n(covered.begin() + static_cast<long>(r + orow) * g.width + oc, w.w(), uint8_t{1});
         g.source += (g.source.empty() ? "" : "+") + b.path;
       }
       FillVoids(buf, covered, g.width, g.height, Quote(g.source));
@@ -356,7 +428,8 @@ TerrainWindow Terrain::ReadWindow(const GeodeticPoint& center, double radius_m) 
       g.width = w.w(), g.height = w.h();
       g.separable = false;
       g.source = a.path;
-      std::vector<float> buf = ReadPosts(a, w);
+      std::vector<float> buf(static_cast<size_t>(w.w()) * w.h());
+      ReadPosts(a, w, buf.data(), w.w());
       FillVoids(buf, std::vector<uint8_t>(buf.size(), 1), g.width, g.height, Quote(a.path));
       g.height_m = std::move(buf);
       g.lon_deg.resize(g.height_m.size());

@@ -31,6 +31,20 @@ class HorizonAccumulator {
 
   void Edge(const SweepPoint& p, const SweepPoint& q) {
     if (p.sector == q.sector) return;
+    // Skip edges that cannot raise the sectors at their ends. On the edge
+    // w <= w_max and |p| + |q| - length <= 2 r <= 2 max(|p|, |q|), so
+    // w / r <= threshold T when w_max <= T r_min: tested without a sqrt.
+    if (IsAdjacent(p.sector, q.sector)) {
+      const double t = std::min(best_[p.sector].tan_el, best_[q.sector].tan_el);
+      const double w_max = std::max(p.w, q.w);
+      if (w_max < 0.0) {
+        if (w_max <= t * std::max(p.d, q.d)) return;
+      } else if (t > 0.0) {
+        const double slack = p.d + q.d - 2.0 * w_max / t;  // must exceed the edge length
+        const double len2 = (q.e - p.e) * (q.e - p.e) + (q.n - p.n) * (q.n - p.n);
+        if (slack > 0.0 && len2 <= slack * slack) return;
+      }
+    }
     // Stationary point of w(t) / r(t) on the edge (closed form, see header).
     const double a = p.w, b = q.w - p.w;
     const double ve = q.e - p.e, vn = q.n - p.n;
@@ -60,17 +74,25 @@ class HorizonAccumulator {
   // root of C R1 s^2 + 2 C R0 s + (B R0 - A R1) = 0.
   void Quad(const SweepPoint& a, const SweepPoint& b, const SweepPoint& c, const SweepPoint& d) {
     if (a.sector == b.sector && a.sector == c.sector && a.sector == d.sector) return;
-    // Upper bound of w / r over the cell, to skip cells that cannot matter.
+    // Skip cells that cannot raise any sector they span: on the cell
+    // w <= w_max (the largest corner plus a quarter of the twist) and
+    // r >= min corner distance - diagonal.
     const double twist = a.w - b.w - c.w + d.w;
     const double w_max = std::max({a.w, b.w, c.w, d.w}) + 0.25 * std::abs(twist);
-    const double diag = std::max(std::hypot(a.e - d.e, a.n - d.n), std::hypot(b.e - c.e, b.n - c.n));
-    const double r_min = std::min({a.d, b.d, c.d, d.d}) - diag;
-    const double r_max = std::max({a.d, b.d, c.d, d.d}) + diag;
-    const double bound = w_max >= 0.0 ? (r_min > 0.0 ? w_max / r_min : INFINITY) : w_max / r_max;
-    internal::CellRays(*setup_, a, b, c, d, [&](int ray, int before, int after) {
-      if (bound <= std::min(best_[before].tan_el, best_[after].tan_el)) return;
-      Chord(a, b, c, d, ray, before, after);
+    double t = INFINITY;
+    const bool walked = internal::CellRays(*setup_, a, b, c, d, [&](int, int before, int after) {
+      t = std::min({t, best_[before].tan_el, best_[after].tan_el});
     });
+    if (!walked) return;
+    const double diag2 = std::max((a.e - d.e) * (a.e - d.e) + (a.n - d.n) * (a.n - d.n),
+                                  (b.e - c.e) * (b.e - c.e) + (b.n - c.n) * (b.n - c.n));
+    if (w_max < 0.0) {
+      if (w_max <= t * (std::max({a.d, b.d, c.d, d.d}) + std::sqrt(diag2))) return;
+    } else if (t > 0.0) {
+      const double slack = std::min({a.d, b.d, c.d, d.d}) - w_max / t;  // must exceed the diagonal
+      if (slack > 0.0 && diag2 <= slack * slack) return;
+    }
+    internal::CellRays(*setup_, a, b, c, d, [&](int ray, int before, int after) { Chord(a, b, c, d, ray, before, after); });
   }
 
   void MergeFrom(const HorizonAccumulator& other) {
@@ -88,6 +110,11 @@ class HorizonAccumulator {
     Best& b = best_[s];
     if (x.tan_el > b.tan_el) b = {x.tan_el, x.d, x.e, x.n, x.u, x.h};
   }
+  bool IsAdjacent(int s1, int s2) const {
+    const int diff = std::abs(s1 - s2);
+    return diff == 1 || diff == setup_->num_sectors - 1;
+  }
+
   void Chord(const SweepPoint& a, const SweepPoint& b, const SweepPoint& c, const SweepPoint& d, int ray,
              int before, int after) {
     const double ue = setup_->ray_sin[ray], un = setup_->ray_cos[ray];

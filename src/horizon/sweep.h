@@ -80,10 +80,39 @@ inline SweepPoint Lerp(const SweepPoint& p, const SweepPoint& q, double t) {
   x.u = p.u + t * (q.u - p.u);
   x.w = p.w + t * (q.w - p.w);
   x.h = p.h + t * (q.h - p.h);
-  x.d = std::hypot(x.e, x.n);
+  x.d = std::sqrt(x.e * x.e + x.n * x.n);
   x.tan_el = x.w / x.d;
   return x;
 }
+
+// One row of posts to place in the observer's frame (see ComputeRow).
+struct RowInput {
+  double obs_sin_lat, obs_cos_lat, obs_x, obs_z;  // observer, in the frame rotated to its meridian
+  double row_sin_lat = 0, row_cos_lat = 0, row_n = 0;  // separable grids: the row's latitude
+  const double* post_sin_lat = nullptr;  // non-separable grids: per post (then row_* unused)
+  const double* post_cos_lat = nullptr;
+  const double* col_sin_dlon = nullptr;  // sin / cos of (post longitude - observer longitude)
+  const double* col_cos_dlon = nullptr;
+  const float* heights = nullptr;
+  int count = 0, stride = 1;
+  double inv_step = 0, sector_offset = 0, lift_scale = 0, min_d2 = 0, max_d2 = 0;
+  int num_sectors = 0;
+};
+
+// Structure-of-arrays results of ComputeRow, one entry per post of the row.
+struct RowScratch {
+  explicit RowScratch(int size)
+      : e(size), n(size), u(size), w(size), d(size), tan_el(size), h(size), sin_lat(size), cos_lat(size),
+        sin_dlon(size), cos_dlon(size), sector(size) {}
+  std::vector<double> e, n, u, w, d, tan_el, h, sin_lat, cos_lat, sin_dlon, cos_dlon;
+  std::vector<int> sector;  // -1: not valid
+};
+
+// Exact ENU (closed-form ECEF rotated to the observer's meridian), refraction
+// lift, tan(elevation) and azimuth sector of every stride-th post of a row.
+// Branch-free so the compiler vectorises it; built for AVX2 and baseline
+// x86-64 with run-time dispatch (horizon/sweep.cc).
+void ComputeRow(const RowInput& in, RowScratch& out);
 
 // Calls handler.Post(p) for every valid post, handler.Edge(p, q) for every
 // grid edge between two valid posts, and handler.Quad(a, b, c, d) for every
@@ -109,56 +138,54 @@ void SweepRows(const DemGrid& grid, const LocalFrame& frame, const SweepSetup& s
     }
   }
   const double inv_step = 1.0 / setup.step_rad;
-  const double two_pi = 2.0 * kPi;
   const double lift_scale = setup.refraction / (2.0 * kRefractionEarthRadiusM);
   const double min_d2 = setup.min_distance_m * setup.min_distance_m;
   const double max_d2 = setup.max_distance_m * setup.max_distance_m;
 
-  auto compute_row = [&](int r, std::vector<SweepPoint>& row) {
-    double sp = 0, cp = 0, nr = 0;
+  RowScratch scratch(w);
+  auto compute_row = [&](int r, std::vector<SweepPoint>& row, int col_stride = 1) {
+    RowInput in;
+    in.obs_sin_lat = sp0, in.obs_cos_lat = cp0, in.obs_x = x0, in.obs_z = z0;
+    in.inv_step = inv_step, in.sector_offset = setup.sector_offset, in.num_sectors = setup.num_sectors;
+    in.lift_scale = lift_scale, in.min_d2 = min_d2, in.max_d2 = max_d2;
+    in.heights = grid.height_m.data() + static_cast<size_t>(r) * w;
+    in.count = w;
+    in.stride = col_stride;
     if (grid.separable) {
       const double lat = DegToRad(grid.lat0_deg + r * grid.dlat_deg);
-      sp = std::sin(lat), cp = std::cos(lat);
-      nr = kWgs84A / std::sqrt(1.0 - kWgs84E2 * sp * sp);
-    }
-    const float* hr = grid.height_m.data() + static_cast<size_t>(r) * w;
-    for (int c = 0; c < w; ++c) {
-      SweepPoint& p = row[c];
-      p.sector = -1;
-      const double h = hr[c];
-      if (!std::isfinite(h)) continue;
-      double sl, cl;
-      if (grid.separable) {
-        sl = col_s[c], cl = col_c[c];
-      } else {
+      in.row_sin_lat = std::sin(lat), in.row_cos_lat = std::cos(lat);
+      in.row_n = kWgs84A / std::sqrt(1.0 - kWgs84E2 * in.row_sin_lat * in.row_sin_lat);
+      in.col_sin_dlon = col_s.data(), in.col_cos_dlon = col_c.data();
+    } else {
+      for (int c = 0; c < w; ++c) {
         const size_t k = static_cast<size_t>(r) * w + c;
-        const double lat = DegToRad(grid.lat_deg[k]);
-        const double dl = DegToRad(grid.lon_deg[k] - o.lon_deg);
-        sp = std::sin(lat), cp = std::cos(lat), sl = std::sin(dl), cl = std::cos(dl);
-        nr = kWgs84A / std::sqrt(1.0 - kWgs84E2 * sp * sp);
+        const double lat = DegToRad(grid.lat_deg[k]), dl = DegToRad(grid.lon_deg[k] - o.lon_deg);
+        scratch.sin_lat[c] = std::sin(lat), scratch.cos_lat[c] = std::cos(lat);
+        scratch.sin_dlon[c] = std::sin(dl), scratch.cos_dlon[c] = std::cos(dl);
       }
-      const double a = (nr + h) * cp;
-      const double dx = a * cl - x0;
-      const double dz = (nr * (1.0 - kWgs84E2) + h) * sp - z0;
-      p.e = a * sl;
-      p.n = -sp0 * dx + cp0 * dz;
-      p.u = cp0 * dx + sp0 * dz;
-      const double d2 = p.e * p.e + p.n * p.n;
-      if (d2 < min_d2 || d2 > max_d2) continue;
-      p.d = std::sqrt(d2);
-      p.w = p.u + lift_scale * d2;
-      p.tan_el = p.w / p.d;
-      p.h = h;
-      double az = FastAtan2(p.e, p.n);
-      if (az < 0.0) az += two_pi;
-      int s = static_cast<int>(std::floor(az * inv_step + setup.sector_offset));
-      if (s >= setup.num_sectors) s -= setup.num_sectors;
-      if (s < 0) s += setup.num_sectors;
-      p.sector = s;
+      in.post_sin_lat = scratch.sin_lat.data(), in.post_cos_lat = scratch.cos_lat.data();
+      in.col_sin_dlon = scratch.sin_dlon.data(), in.col_cos_dlon = scratch.cos_dlon.data();
+    }
+    ComputeRow(in, scratch);
+    for (int c = 0; c < w; c += col_stride) {
+      SweepPoint& p = row[c];
+      p.sector = scratch.sector[c];
+      if (p.sector < 0) continue;
+      p.e = scratch.e[c], p.n = scratch.n[c], p.u = scratch.u[c], p.w = scratch.w[c];
+      p.d = scratch.d[c], p.tan_el = scratch.tan_el[c], p.h = in.heights[c];
     }
   };
 
   std::vector<SweepPoint> prev(w), cur(w);
+  // Pre-pass: every kPrePassStride-th post of every kPrePassStride-th row,
+  // so the handler holds a good lower bound of each sector's maximum before
+  // the full pass and can skip the edges and cells that cannot raise it.
+  constexpr int kPrePassStride = 4;
+  for (int r = row_begin; r < row_end; r += kPrePassStride) {
+    compute_row(r, cur, kPrePassStride);
+    for (int c = 0; c < w; c += kPrePassStride)
+      if (cur[c].sector >= 0) handler.Post(cur[c]);
+  }
   if (row_begin > 0) compute_row(row_begin - 1, prev);
   for (int r = row_begin; r < row_end; ++r) {
     compute_row(r, cur);
