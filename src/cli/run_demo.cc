@@ -2,7 +2,7 @@
 // `horizonreg demo`: the main job on built-in data. Until registration and
 // the overlay land, it computes and plots the horizon of a real DEM that a
 // Debian package ships (python-matplotlib-data: Jacksboro fault, Cumberland
-// Mountains, TN, 3 arc-seconds), seen from its highest summit.
+// Mountains, TN, 3 arc-seconds), seen from a valley floor near its centre.
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <chrono>
@@ -40,13 +40,18 @@ int RunDemo(const DemoArgs& a) {
   const Terrain terrain({dem});
   const GeodeticPoint centre = terrain.CenterOf(0);
   const TerrainWindow whole = terrain.ReadWindow(centre, 100'000.0);
-  // Observer: the highest post of the DEM, a summit with a view all round.
+  // Observer: the lowest post of the DEM's central part, a valley floor with
+  // ridges all round.
   const DemGrid& g = whole.grids.at(0);
-  size_t top = 0;
-  for (size_t i = 0; i < g.height_m.size(); ++i)
-    if (std::isfinite(g.height_m[i]) && !(g.height_m[i] <= g.height_m[top])) top = i;
-  const int col = static_cast<int>(top % g.width), row = static_cast<int>(top / g.width);
-  const double lat = g.LatAt(col, row) + 0.3 * g.dlat_deg, lon = g.LonAt(col, row) + 0.3 * g.dlon_deg;
+  size_t low = 0;
+  float low_h = INFINITY;
+  for (int r = g.height / 4; r < 3 * g.height / 4; ++r)
+    for (int c = g.width / 4; c < 3 * g.width / 4; ++c) {
+      const size_t k = static_cast<size_t>(r) * g.width + c;
+      if (g.height_m[k] < low_h) low_h = g.height_m[k], low = k;
+    }
+  const int col = static_cast<int>(low % g.width), row = static_cast<int>(low / g.width);
+  const double lat = g.LatAt(col, row), lon = g.LonAt(col, row);
   HorizonOptions options;
   const GeodeticPoint observer = ResolveObserver(whole, lat, lon, std::nullopt, std::nullopt);
   const auto t1 = Clock::now();

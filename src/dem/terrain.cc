@@ -104,7 +104,7 @@ Source OpenSource(const std::string& path) {
   if (std::filesystem::path(path).extension() == ".npz") {
     ds = DatasetFromNpz(path);
   } else {
-    ds = GDALOpenEx(path.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY, nullptr, nullptr, nullptr);
+    ds = GDALOpenEx(path.c_str(), GDAL_OF_RASTER | GDAL_OF_READONLY | GDAL_OF_VERBOSE_ERROR, nullptr, nullptr, nullptr);
   }
   if (ds == nullptr) throw IoError("dem: " + Quote(path) + " is not a readable raster: " + LastGdalMessage());
   s.dataset.reset(ds);

@@ -118,10 +118,11 @@ void ComputeRow(const RowInput& in, RowScratch& out);
 // grid edge between two valid posts, and handler.Quad(a, b, c, d) for every
 // cell with four valid corners (a, b on the northern row west to east, c, d
 // below them). Rows [row_begin, row_end) of `grid`; the row before row_begin
-// is computed for the edges and cells that join it.
+// is computed for the edges and cells that join it. With pre_pass, only a
+// sparse subset of the posts goes to handler.Post (see below).
 template <typename Handler>
 void SweepRows(const DemGrid& grid, const LocalFrame& frame, const SweepSetup& setup, int row_begin, int row_end,
-               Handler& handler) {
+               bool pre_pass, Handler& handler) {
   const GeodeticPoint& o = frame.origin();
   const double sp0 = std::sin(DegToRad(o.lat_deg)), cp0 = std::cos(DegToRad(o.lat_deg));
   const double n0 = kWgs84A / std::sqrt(1.0 - kWgs84E2 * sp0 * sp0);
@@ -177,14 +178,17 @@ void SweepRows(const DemGrid& grid, const LocalFrame& frame, const SweepSetup& s
   };
 
   std::vector<SweepPoint> prev(w), cur(w);
-  // Pre-pass: every kPrePassStride-th post of every kPrePassStride-th row,
-  // so the handler holds a good lower bound of each sector's maximum before
-  // the full pass and can skip the edges and cells that cannot raise it.
-  constexpr int kPrePassStride = 4;
-  for (int r = row_begin; r < row_end; r += kPrePassStride) {
-    compute_row(r, cur, kPrePassStride);
-    for (int c = 0; c < w; c += kPrePassStride)
-      if (cur[c].sector >= 0) handler.Post(cur[c]);
+  if (pre_pass) {
+    // Every kPrePassStride-th post of every kPrePassStride-th row, so the
+    // handler holds a good lower bound of each sector's maximum before the
+    // full pass and can skip the edges and cells that cannot raise it.
+    constexpr int kPrePassStride = 4;
+    for (int r = row_begin; r < row_end; r += kPrePassStride) {
+      compute_row(r, cur, kPrePassStride);
+      for (int c = 0; c < w; c += kPrePassStride)
+        if (cur[c].sector >= 0) handler.Post(cur[c]);
+    }
+    return;
   }
   if (row_begin > 0) compute_row(row_begin - 1, prev);
   for (int r = row_begin; r < row_end; ++r) {
@@ -261,19 +265,25 @@ std::vector<Handler> SweepGrids(const std::vector<DemGrid>& grids, const LocalFr
                                 int num_threads, Make&& make_handler) {
   std::vector<Handler> handlers;
   for (int i = 0; i < num_threads; ++i) handlers.push_back(make_handler());
+  // Rows go to the threads in interleaved blocks, so voids and far areas
+  // do not leave one thread idle; each thread first runs the sparse pre-pass
+  // over the whole grid.
+  constexpr int kBlockRows = 32;
   for (const DemGrid& grid : grids) {
     if (grid.width < 2 || grid.height < 2) continue;
-    const int threads = std::min(num_threads, grid.height);
-    if (threads <= 1) {
-      SweepRows(grid, frame, setup, 0, grid.height, handlers[0]);
+    const int threads = std::max(1, std::min(num_threads, (grid.height + kBlockRows - 1) / kBlockRows));
+    auto work = [&](int t) {
+      SweepRows(grid, frame, setup, 0, grid.height, true, handlers[t]);
+      for (int r0 = t * kBlockRows; r0 < grid.height; r0 += threads * kBlockRows)
+        SweepRows(grid, frame, setup, r0, std::min(grid.height, r0 + kBlockRows), false, handlers[t]);
+    };
+    if (threads == 1) {
+      work(0);
       continue;
     }
     std::vector<std::thread> pool;
-    for (int t = 0; t < threads; ++t) {
-      const int r0 = static_cast<int>(static_cast<long>(grid.height) * t / threads);
-      const int r1 = static_cast<int>(static_cast<long>(grid.height) * (t + 1) / threads);
-      pool.emplace_back([&, r0, r1, t] { SweepRows(grid, frame, setup, r0, r1, handlers[t]); });
-    }
+    for (int t = 1; t < threads; ++t) pool.emplace_back(work, t);
+    work(0);
     for (auto& th : pool) th.join();
   }
   return handlers;

@@ -146,8 +146,8 @@ void PlotHorizon(const HorizonProfile& profile, const std::vector<std::vector<Ri
     }
   }
   cv::rectangle(img, cv::Point(left, top), cv::Point(left + pw, top + ph), ink, 1);
-  cv::putText(img, "elevation angle (deg)", {8, top - 12}, font, 0.45, ink, 1, cv::LINE_AA);
-  cv::putText(img, options.title, {left, 30}, font, 0.65, ink, 1, cv::LINE_AA);
+  cv::putText(img, "elevation angle (deg)", {8, top - 6}, font, 0.45, ink, 1, cv::LINE_AA);
+  cv::putText(img, options.title, {left, 22}, font, 0.65, ink, 1, cv::LINE_AA);
   // Distance legend.
   const int lx = left + pw - 300, ly = 18;
   for (int i = 0; i < 200; ++i) {

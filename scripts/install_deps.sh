@@ -1,0 +1,26 @@
+#!/usr/bin/env bash
+# Installs the Debian packages horizonreg needs, skipping those present.
+# Usage: install_deps.sh [--test]   (--test adds what only the tests need)
+set -euo pipefail
+packages=(
+  build-essential cmake pkg-config file python3 bc
+  libgdal-dev gdal-bin libopencv-dev libeigen3-dev libceres-dev libgeographiclib-dev
+  libcli11-dev nlohmann-json3-dev libexiv2-dev libgtest-dev libgmock-dev libbenchmark-dev
+  python-matplotlib-data   # the demo's DEM: jacksboro_fault_dem.npz
+)
+if [ "${1:-}" = "--test" ]; then
+  packages+=(grass-core)  # the r.horizon comparison test
+fi
+missing=()
+for p in "${packages[@]}"; do
+  if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then missing+=("$p"); fi
+done
+if [ ${#missing[@]} -eq 0 ]; then
+  exit 0
+fi
+echo "Installing: ${missing[*]}"
+sudo=""
+if [ "$(id -u)" -ne 0 ]; then sudo="sudo"; fi
+export DEBIAN_FRONTEND=noninteractive
+$sudo apt-get update -qq
+$sudo apt-get install -y -qq --no-install-recommends "${missing[@]}"

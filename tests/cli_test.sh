@@ -1,0 +1,105 @@
+#!/usr/bin/env bash
+# CLI contract of `horizonreg horizon` (DESIGN.md): outputs and formats on a
+# real DEM, and bad input -> one clear line on stderr, exit code 2, no
+# output file. Usage: cli_test.sh HORIZONREG SHARED_DIR
+set -uo pipefail
+bin=$1
+shared=$2
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+pass=0 fail=0
+ok() { pass=$((pass + 1)); echo "ok   $1"; }
+bad() { fail=$((fail + 1)); echo "FAIL $1"; }
+
+# expect_exit2 NAME ARGS...: exit 2, exactly one stderr line, no output file.
+expect_exit2() {
+  local name=$1; shift
+  rm -f "$work/out.json" "$work/out.png"
+  "$bin" "$@" > "$work/stdout" 2> "$work/stderr"
+  local rc=$?
+  local lines; lines=$(wc -l < "$work/stderr")
+  if [ "$rc" -eq 2 ] && [ "$lines" -eq 1 ] && [ ! -s "$work/stdout" ] && [ ! -e "$work/out.json" ] && [ ! -e "$work/out.png" ]; then
+    ok "$name: $(cat "$work/stderr")"
+  else
+    bad "$name: exit $rc, $lines stderr lines: $(head -c 300 "$work/stderr")"
+  fi
+}
+
+npz=/usr/share/matplotlib/mpl-data/sample_data/jacksboro_fault_dem.npz
+if [ -f "$npz" ]; then dem=$npz lat=36.6 lon=-84.25; else dem=""; fi
+if [ -d "$shared/dem" ]; then hgt="$shared/dem/N47E009.hgt"; else hgt=""; fi
+
+# --- success paths ---
+if [ -n "$dem" ]; then
+  if "$bin" horizon --dem "$dem" --lat $lat --lon $lon -o "$work/h.json" --plot "$work/h.png" --ridges; then
+    python3 - "$work/h.json" <<'PY' && ok "json: 1440 bins, DESIGN.md fields, ridges" || bad "json contents"
+import json, sys
+j = json.load(open(sys.argv[1]))
+for k in ["observer", "step_deg", "refraction", "azimuth_deg", "elevation_deg", "distance_m", "lat", "lon", "height_m", "ridges"]:
+    assert k in j, k
+assert len(j["elevation_deg"]) == 1440 and j["azimuth_deg"][4] == 1.0
+assert all(e is not None for e in j["elevation_deg"])
+assert set(j["observer"]) >= {"lat", "lon", "eye_height_m"}
+PY
+    file "$work/h.png" | grep -q "PNG image data, 1800 x 560" && ok "plot png" || bad "plot png"
+  else
+    bad "horizon json run"
+  fi
+  "$bin" horizon --dem "$dem" --lat $lat --lon $lon --format csv --step 1 > "$work/h.csv" \
+    && [ "$(wc -l < "$work/h.csv")" -eq 361 ] && head -1 "$work/h.csv" | grep -q "^azimuth_deg,elevation_deg,distance_m,lat,lon,height_m$" \
+    && ok "csv to stdout, --step 1" || bad "csv"
+  "$bin" horizon --dem "$dem" --lat $lat --lon $lon --format geojson -o "$work/h.geojson" && python3 - "$work/h.geojson" <<'PY' && ok "geojson LineString 3D" || bad "geojson"
+import json, sys
+j = json.load(open(sys.argv[1]))
+line = j["features"][0]["geometry"]
+assert j["type"] == "FeatureCollection" and line["type"] == "LineString"
+assert len(line["coordinates"]) == 1441 and len(line["coordinates"][0]) == 3
+assert j["features"][1]["geometry"]["type"] == "Point"
+PY
+  a=$("$bin" horizon --dem "$dem" --lat $lat --lon $lon --refraction 0 --format csv | sed -n 2p | cut -d, -f2)
+  b=$("$bin" horizon --dem "$dem" --lat $lat --lon $lon --format csv | sed -n 2p | cut -d, -f2)
+  [ "$a" != "$b" ] && ok "refraction changes the angles ($a vs $b)" || bad "refraction has no effect"
+  a=$("$bin" horizon --dem "$dem" --lat $lat --lon $lon --alt 2000 --format csv | sed -n 2p | cut -d, -f2)
+  python3 -c "import sys; sys.exit(0 if float('$a') < 0 else 1)" && ok "--alt 2000 sees negative angles ($a)" || bad "--alt"
+else
+  echo "SKIPPED: success paths need python-matplotlib-data ($npz)"
+fi
+
+# --- bad input ---
+d=${dem:-$hgt}
+if [ -n "$d" ]; then
+  expect_exit2 "missing dem" horizon --dem "$work/nope.hgt" --lat 1 --lon 1 -o "$work/out.json"
+  echo "not a raster" > "$work/text.tif"
+  expect_exit2 "non-raster dem" horizon --dem "$work/text.tif" --lat 1 --lon 1 -o "$work/out.json"
+  expect_exit2 "directory as dem" horizon --dem "$work" --lat 1 --lon 1 -o "$work/out.json"
+  expect_exit2 "observer outside" horizon --dem "$d" --lat 10 --lon 10 -o "$work/out.json" --plot "$work/out.png"
+  expect_exit2 "nan latitude" horizon --dem "$d" --lat nan --lon 10 -o "$work/out.json"
+  expect_exit2 "latitude 91" horizon --dem "$d" --lat 91 --lon 10 -o "$work/out.json"
+  expect_exit2 "longitude 400" horizon --dem "$d" --lat 10 --lon 400 -o "$work/out.json"
+  expect_exit2 "step 0.7" horizon --dem "$d" --lat 10 --lon 10 --step 0.7 -o "$work/out.json"
+  expect_exit2 "step 0" horizon --dem "$d" --lat 10 --lon 10 --step 0 -o "$work/out.json"
+  expect_exit2 "step nan" horizon --dem "$d" --lat 10 --lon 10 --step nan -o "$work/out.json"
+  expect_exit2 "step text" horizon --dem "$d" --lat 10 --lon 10 --step abc -o "$work/out.json"
+  expect_exit2 "negative max distance" horizon --dem "$d" --lat 10 --lon 10 --max-distance -5 -o "$work/out.json"
+  expect_exit2 "agl and alt" horizon --dem "$d" --lat 10 --lon 10 --agl 2 --alt 100 -o "$work/out.json"
+  expect_exit2 "unknown format" horizon --dem "$d" --lat 10 --lon 10 --format xml -o "$work/out.json"
+  expect_exit2 "missing --lat" horizon --dem "$d" --lon 10 -o "$work/out.json"
+  expect_exit2 "unknown command" frobnicate
+  expect_exit2 "unwritable output" horizon --dem "${dem:-$hgt}" --lat ${lat:-47.5} --lon ${lon:-9.5} -o "/nonexistent/dir/out.json"
+  if command -v gdal_create >/dev/null; then
+    gdal_create -q -of GTiff -outsize 20 20 -bands 1 -ot Int16 -burn -32768 -a_nodata -32768 -a_srs EPSG:4326 \
+      -a_ullr 9 48 9.02 47.98 "$work/allvoid.tif"
+    expect_exit2 "all-void dem" horizon --dem "$work/allvoid.tif" --lat 47.99 --lon 9.01 -o "$work/out.json"
+  fi
+fi
+if [ -n "$hgt" ]; then
+  head -c 100000 "$hgt" > "$work/N47E009.hgt"
+  expect_exit2 "truncated hgt" horizon --dem "$work/N47E009.hgt" --lat 47.5 --lon 9.5 -o "$work/out.json"
+else
+  echo "SKIPPED: truncated-HGT case needs ../shared"
+fi
+"$bin" --help > /dev/null && ok "--help exits 0" || bad "--help"
+"$bin" horizon --help | grep -q -- "--max-distance" && ok "horizon --help lists options" || bad "horizon --help"
+
+echo "cli_test: $pass passed, $fail failed"
+[ "$fail" -eq 0 ]
