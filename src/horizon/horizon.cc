@@ -25,7 +25,7 @@ template <typename T>
 // Per-bin maxima of one thread.
 class HorizonAccumulator {
  public:
-  HorizonAccumulator(const SweepSetup& setup) : setup_(&setup), best_(setup.num_sectors) {}
+  explicit HorizonAccumulator(const SweepSetup& setup) : setup_(&setup), best_(setup.num_sectors) {}
 
   void Post(const SweepPoint& p) { Update(p.sector, p); }
 
