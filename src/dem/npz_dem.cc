@@ -5,7 +5,7 @@
 
 #include <cstdint>
 #include <cstring>
-#include <regex>
+#include <cctype>
 
 #include "util/errors.h"
 
@@ -58,18 +58,34 @@ NpyArray ParseNpy(const std::string& path, const std::string& member, const std:
   if (raw.size() < offset + header_len) throw bad("truncated header");
   const std::string header = raw.substr(offset, header_len);
   offset += header_len;
-  std::smatch m;
+  // The header is a Python dict literal: {'descr': '<i2', 'fortran_order': False, 'shape': (344, 403), }
+  auto value_after = [&](const std::string& key) -> std::string {
+    const size_t k = header.find("'" + key + "'");
+    if (k == std::string::npos) throw bad("no '" + key + "' in the header");
+    const size_t colon = header.find(':', k);
+    if (colon == std::string::npos) throw bad("bad header");
+    return header.substr(colon + 1);
+  };
   NpyArray a;
-  if (!std::regex_search(header, m, std::regex("'descr':\\s*'([^']+)'"))) throw bad("no dtype");
-  a.dtype = m[1];
-  if (std::regex_search(header, m, std::regex("'fortran_order':\\s*True"))) throw bad("Fortran order not supported");
-  if (!std::regex_search(header, m, std::regex("'shape':\\s*\\(([^)]*)\\)"))) throw bad("no shape");
-  const std::string dims = m[1];
+  const std::string descr = value_after("descr");
+  const size_t q0 = descr.find('\''), q1 = descr.find('\'', q0 + 1);
+  if (q0 == std::string::npos || q1 == std::string::npos) throw bad("no dtype");
+  a.dtype = descr.substr(q0 + 1, q1 - q0 - 1);
+  if (value_after("fortran_order").find("True") < value_after("fortran_order").find(','))
+    throw bad("Fortran order not supported");
+  const std::string shape = value_after("shape");
+  const size_t p0 = shape.find('('), p1 = shape.find(')');
+  if (p0 == std::string::npos || p1 == std::string::npos) throw bad("no shape");
   size_t count = 1;
-  const std::regex number("[0-9]+");
-  for (std::sregex_iterator it(dims.begin(), dims.end(), number), end; it != end; ++it) {
-    a.shape.push_back(std::stoi(it->str()));
-    count *= static_cast<size_t>(a.shape.back());
+  for (size_t i = p0 + 1; i < p1;) {
+    if (std::isdigit(static_cast<unsigned char>(shape[i]))) {
+      size_t used = 0;
+      a.shape.push_back(std::stoi(shape.substr(i), &used));
+      count *= static_cast<size_t>(a.shape.back());
+      i += used;
+    } else {
+      ++i;
+    }
   }
   size_t item;
   if (a.dtype == "<i2") item = 2;

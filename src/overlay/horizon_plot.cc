@@ -90,6 +90,7 @@ void PlotHorizon(const HorizonProfile& profile, const std::vector<std::vector<Ri
   // Inner ridge lines.
   for (int i = 0; i < static_cast<int>(ridges.size()) && i < n; ++i) {
     for (const Ridge& r : ridges[i]) {
+      if (r.elevation_deg < lo || r.elevation_deg > hi) continue;  // outside the chart
       const cv::Point p(static_cast<int>(x_of(profile.AzimuthDeg(i))), static_cast<int>(y_of(r.elevation_deg)));
       cv::circle(img, p, 1, DistanceColour(r.distance_m, dmax) * 0.55, cv::FILLED);
     }
