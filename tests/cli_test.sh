@@ -98,6 +98,33 @@ if [ -n "$hgt" ]; then
 else
   echo "SKIPPED: truncated-HGT case needs ../shared"
 fi
+# --- skyline ---
+scene="$shared/scenes/dev/rainier_01.jpg"
+if [ -f "$scene" ]; then
+  "$bin" skyline "$scene" --json "$work/s.json" --debug "$work/s.png" && python3 - "$work/s.json" <<'PY' && ok "skyline json on a dev scene" || bad "skyline json"
+import json, sys
+j = json.load(open(sys.argv[1]))
+assert j["width"] == 1024 and j["height"] == 683 and len(j["y"]) == 1024 and len(j["confidence"]) == 1024
+assert sum(v is not None for v in j["y"]) > 900
+PY
+  file "$work/s.png" | grep -q "PNG image data, 1024 x 683" && ok "skyline debug png" || bad "skyline debug png"
+  head -c 20000 "$scene" > "$work/cut.jpg"
+  expect_exit2 "truncated jpeg" skyline "$work/cut.jpg" --json "$work/out.json"
+else
+  echo "SKIPPED: skyline dev-scene cases need ../shared"
+fi
+: > "$work/empty.jpg"
+expect_exit2 "empty image file" skyline "$work/empty.jpg" --json "$work/out.json"
+expect_exit2 "missing image" skyline "$work/nope.jpg" --json "$work/out.json"
+expect_exit2 "text as image" skyline "$work/text.tif" --json "$work/out.json"
+expect_exit2 "roll hint 90" skyline "$work/empty.jpg" --roll 90 --json "$work/out.json"
+if command -v gdal_create >/dev/null; then
+  gdal_create -q -of GTiff -outsize 64 48 -bands 3 -ot Byte -burn 128 "$work/grey.tif"
+  gdal_translate -q -of PNG "$work/grey.tif" "$work/grey.png"
+  "$bin" skyline "$work/grey.png" > "$work/grey.json" && python3 -c "
+import json, sys; j = json.load(open('$work/grey.json')); sys.exit(0 if all(v is None for v in j['y']) and len(j['y']) == 64 else 1)" \
+    && ok "uniform image gives all-null, exit 0" || bad "uniform image"
+fi
 "$bin" --help > /dev/null && ok "--help exits 0" || bad "--help"
 "$bin" horizon --help | grep -q -- "--max-distance" && ok "horizon --help lists options" || bad "horizon --help"
 

@@ -27,6 +27,13 @@ struct HorizonArgs {
 void AddHorizonCommand(CLI::App& app, HorizonArgs& args);
 int RunHorizon(const HorizonArgs& args);
 
+struct SkylineArgs {
+  std::string image, json, debug;
+  std::optional<double> roll;
+};
+void AddSkylineCommand(CLI::App& app, SkylineArgs& args);
+int RunSkyline(const SkylineArgs& args);
+
 struct DemoArgs {
   std::string output_dir = ".";
   std::string dem;  // default: matplotlib's jacksboro_fault_dem.npz

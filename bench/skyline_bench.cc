@@ -1,0 +1,43 @@
+// SPDX-License-Identifier: MIT
+// Skyline extraction speed (paper, section 4.3: 1 s for a 512 x 480 frame on
+// a 200 MHz Pentium Pro), one core, on a dev scene at 1024 x 683 and scaled
+// to 4000 x 3000. Needs ../shared/scenes; skips with a message without it.
+#include <benchmark/benchmark.h>
+
+#include <cstdio>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "skyline/skyline.h"
+#include "testing/shared_data.h"
+
+namespace horizonreg {
+namespace {
+
+cv::Mat LoadScene(int width, int height) {
+  const auto shared = testing::SharedDir();
+  if (!shared) return {};
+  cv::Mat img = cv::imread((*shared / "scenes" / "dev" / "rainier_04.jpg").string());
+  if (!img.empty() && img.cols != width) cv::resize(img, img, cv::Size(width, height), 0, 0, cv::INTER_CUBIC);
+  return img;
+}
+
+void BM_Skyline(benchmark::State& state) {
+  cv::setNumThreads(1);
+  const cv::Mat img = LoadScene(static_cast<int>(state.range(0)), static_cast<int>(state.range(1)));
+  if (img.empty()) return state.SkipWithError("../shared is absent");
+  for (auto _ : state) benchmark::DoNotOptimize(ExtractSkyline(img, SkylineOptions{}));
+}
+BENCHMARK(BM_Skyline)->Args({1024, 683})->Args({4000, 3000})->Unit(benchmark::kMillisecond);
+
+}  // namespace
+}  // namespace horizonreg
+
+int main(int argc, char** argv) {
+  std::printf("Paper (Behringer 1999): skyline of a 512 x 480 frame in 1 s.\n");
+  benchmark::Initialize(&argc, argv);
+  benchmark::RunSpecifiedBenchmarks();
+  benchmark::Shutdown();
+  return 0;
+}

@@ -1,0 +1,366 @@
+// SPDX-License-Identifier: MIT
+#include "skyline/skyline.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <numeric>
+#include <opencv2/imgproc.hpp>
+#include <sstream>
+
+#include "util/angles.h"
+#include "util/errors.h"
+
+namespace horizonreg {
+namespace {
+
+constexpr int kHistBins = 16;          // per CIELAB axis
+constexpr float kColourWeight = 0.25f;  // DP cost per misclassified pixel (edges weigh 1 per delta E)
+constexpr float kEdgeAboveWeight = 0.5f;  // DP cost per delta E of sharp steps left above the boundary
+constexpr float kEdgeNoise = 4.0f;        // delta E of a step that is still noise or a soft cloud edge
+
+inline int HistIndex(const cv::Vec3f& lab) {
+  const int l = std::clamp(static_cast<int>(lab[0] * (kHistBins / 100.0f)), 0, kHistBins - 1);
+  const int a = std::clamp(static_cast<int>((lab[1] + 64.0f) * (kHistBins / 128.0f)), 0, kHistBins - 1);
+  const int b = std::clamp(static_cast<int>((lab[2] + 64.0f) * (kHistBins / 128.0f)), 0, kHistBins - 1);
+  return (l * kHistBins + a) * kHistBins + b;
+}
+
+inline float Sigmoid(float x) { return 1.0f / (1.0f + std::exp(-x)); }
+
+// 8-bit sRGB (BGR order) to CIELAB (D65; L 0..100), as OpenCV defines it.
+// Written out because OpenCV's cvtColor spends ~120 ms building its Lab
+// tables on first use, which a one-shot command pays every time.
+class LabConverter {
+ public:
+  LabConverter() {
+    for (int i = 0; i < 256; ++i) {
+      const double v = i / 255.0;
+      linear_[i] = static_cast<float>(v <= 0.04045 ? v / 12.92 : std::pow((v + 0.055) / 1.055, 2.4));
+    }
+    for (int i = 0; i <= kLut + 1; ++i) {  // f(t) = cbrt(t), or its linear toe, on [0, 1.1]
+      const double t = 1.1 * i / kLut;
+      f_[i] = static_cast<float>(t > 0.008856 ? std::cbrt(t) : 7.787 * t + 16.0 / 116.0);
+    }
+  }
+  cv::Vec3f operator()(const cv::Vec3b& bgr) const {
+    const float b = linear_[bgr[0]], g = linear_[bgr[1]], r = linear_[bgr[2]];
+    const float fx = F((0.412453f * r + 0.357580f * g + 0.180423f * b) / 0.950456f);
+    const float fy = F(0.212671f * r + 0.715160f * g + 0.072169f * b);
+    const float fz = F((0.019334f * r + 0.119193f * g + 0.950227f * b) / 1.088754f);
+    return {116.0f * fy - 16.0f, 500.0f * (fx - fy), 200.0f * (fy - fz)};
+  }
+  cv::Mat Convert(const cv::Mat& bgr) const {
+    cv::Mat lab(bgr.size(), CV_32FC3);
+    for (int r = 0; r < bgr.rows; ++r) {
+      const cv::Vec3b* in = bgr.ptr<cv::Vec3b>(r);
+      cv::Vec3f* out = lab.ptr<cv::Vec3f>(r);
+      for (int c = 0; c < bgr.cols; ++c) out[c] = (*this)(in[c]);
+    }
+    return lab;
+  }
+
+ private:
+  static constexpr int kLut = 4096;
+  float F(float t) const {
+    const float x = std::clamp(t, 0.0f, 1.1f) * (kLut / 1.1f);
+    const int i = static_cast<int>(x);
+    return f_[i] + (x - i) * (f_[i + 1] - f_[i]);
+  }
+  std::array<float, 256> linear_{};
+  std::array<float, kLut + 2> f_{};
+};
+
+// Pass 1: sky likeness relative to the image's top band (assumed sky).
+// lab_t is transposed (one row per image column).
+cv::Mat SkyScoreFromTopBand(const cv::Mat& lab_t) {
+  const int w = lab_t.rows, h = lab_t.cols;
+  const int band = std::max(2, h / 30);
+  std::vector<float> ls;
+  for (int c = 0; c < w; ++c)
+    for (int r = 0; r < band; ++r) ls.push_back(lab_t.at<cv::Vec3f>(c, r)[0]);
+  auto median = [](std::vector<float>& v) {
+    std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+    return v[v.size() / 2];
+  };
+  const float lm = median(ls);
+  cv::Mat s(w, h, CV_32F);
+  for (int c = 0; c < w; ++c) {
+    const cv::Vec3f* row = lab_t.ptr<cv::Vec3f>(c);
+    float* out = s.ptr<float>(c);
+    for (int r = 0; r < h; ++r) {
+      const cv::Vec3f v = row[r];
+      // Sky: not darker than the top band (skies lighten towards the
+      // horizon) and blue or neutral in hue (clouds, haze); terrain is
+      // darker or green, yellow, brown or red.
+      const float dark = Sigmoid(((lm - 6.0f) - v[0]) / 2.5f);
+      const float warm = std::min(1.0f, Sigmoid((v[2] - 6.0f) / 2.0f) + Sigmoid((std::abs(v[1]) - 10.0f) / 2.0f));
+      out[r] = (1.0f - dark) * (1.0f - warm);
+    }
+  }
+  return s;
+}
+
+// Pass 2: sky probability from colour histograms of the pixels above and
+// below a first boundary (class-balanced likelihood ratio).
+cv::Mat SkyScoreFromHistograms(const cv::Mat& lab_t, const std::vector<int>& boundary) {
+  const int w = lab_t.rows, h = lab_t.cols;
+  std::vector<float> sky(kHistBins * kHistBins * kHistBins, 1.0f), ground(sky.size(), 1.0f);
+  double ns = sky.size(), ng = ground.size();
+  for (int c = 0; c < w; ++c) {
+    const cv::Vec3f* row = lab_t.ptr<cv::Vec3f>(c);
+    for (int r = 0; r < h; ++r) {
+      if (r < boundary[c] - 2) {
+        sky[HistIndex(row[r])] += 1, ns += 1;
+      } else if (r > boundary[c] + 2) {
+        ground[HistIndex(row[r])] += 1, ng += 1;
+      }
+    }
+  }
+  std::vector<float> p(sky.size());
+  for (size_t i = 0; i < p.size(); ++i) {
+    const double ps = sky[i] / ns, pg = ground[i] / ng;
+    p[i] = static_cast<float>(std::clamp(ps / (ps + pg), 0.02, 0.98));
+  }
+  cv::Mat s(w, h, CV_32F);
+  for (int c = 0; c < w; ++c) {
+    const cv::Vec3f* row = lab_t.ptr<cv::Vec3f>(c);
+    float* out = s.ptr<float>(c);
+    for (int r = 0; r < h; ++r) out[r] = p[HistIndex(row[r])];
+  }
+  return s;
+}
+
+// Colour step between rows y-1 and y (delta E of the blurred image), for
+// y in [0, h]; steps where the upper side is darker count half (sky is
+// usually the brighter side). One row per image column.
+cv::Mat BoundarySteps(const cv::Mat& lab_t) {
+  const int w = lab_t.rows, h = lab_t.cols;
+  cv::Mat e(w, h + 1, CV_32F, cv::Scalar(0));
+  for (int c = 0; c < w; ++c) {
+    const cv::Vec3f* row = lab_t.ptr<cv::Vec3f>(c);
+    float* out = e.ptr<float>(c);
+    for (int y = 1; y < h; ++y) {
+      const cv::Vec3f d = row[y] - row[y - 1];
+      const float mag = std::sqrt(d.dot(d));
+      out[y] = d[0] > 2.0f ? 0.5f * mag : mag;
+    }
+  }
+  return e;
+}
+
+// Globally best boundary (one y in [0, h] per column): misclassified pixels
+// (sky below or non-sky above) minus the colour step at the boundary, plus
+// `smoothness` per pixel of jump, around the slope expected from the roll.
+std::vector<int> SolveBoundary(const cv::Mat& sky_t, const cv::Mat& steps_t, double smoothness, double edge_weight,
+                               double slope_px_per_col) {
+  const int w = sky_t.rows, h = sky_t.cols, n = h + 1;
+  std::vector<float> prev(n), cur(n), data(n), tmp(n);
+  std::vector<int> arg(static_cast<size_t>(w) * n), targ(n);
+  const float beta = static_cast<float>(smoothness), lambda = static_cast<float>(edge_weight);
+  auto data_cost = [&](int c) {
+    const float* s = sky_t.ptr<float>(c);
+    const float* e = steps_t.ptr<float>(c);
+    float below = 0;
+    for (int r = 0; r < h; ++r) below += s[r];
+    // Sharp colour steps above the boundary are terrain edges left in the
+    // sky (the paper scans from the top for the first edge): each costs its
+    // excess over the noise level. Clouds and sky gradients step softly.
+    float above = 0, edges_above = 0;
+    for (int y = 0; y <= h; ++y) {
+      data[y] = kColourWeight * (above + below) + kEdgeAboveWeight * edges_above - lambda * e[y];
+      if (y < h) above += 1.0f - s[y], below -= s[y], edges_above += std::max(0.0f, e[y] - kEdgeNoise);
+    }
+  };
+  data_cost(0);
+  prev = data;
+  int last_shift_total = 0;
+  for (int c = 1; c < w; ++c) {
+    const int shift_total = static_cast<int>(std::lround(c * slope_px_per_col));
+    const int shift = shift_total - last_shift_total;
+    last_shift_total = shift_total;
+    // Shifted previous column, then an L1 distance transform with argmins.
+    for (int y = 0; y < n; ++y) {
+      const int src = std::clamp(y - shift, 0, h);
+      tmp[y] = prev[src];
+      targ[y] = src;
+    }
+    for (int y = 1; y < n; ++y)
+      if (tmp[y - 1] + beta < tmp[y]) tmp[y] = tmp[y - 1] + beta, targ[y] = targ[y - 1];
+    for (int y = n - 2; y >= 0; --y)
+      if (tmp[y + 1] + beta < tmp[y]) tmp[y] = tmp[y + 1] + beta, targ[y] = targ[y + 1];
+    data_cost(c);
+    int* a = arg.data() + static_cast<size_t>(c) * n;
+    for (int y = 0; y < n; ++y) cur[y] = tmp[y] + data[y], a[y] = targ[y];
+    std::swap(prev, cur);
+  }
+  std::vector<int> out(w);
+  out[w - 1] = static_cast<int>(std::min_element(prev.begin(), prev.end()) - prev.begin());
+  for (int c = w - 1; c > 0; --c) out[c - 1] = arg[static_cast<size_t>(c) * n + out[c]];
+  return out;
+}
+
+struct ColumnFit {
+  double y = NAN;
+  double contrast = 0;   // delta E between the local sky and ground colours
+  double ground_l = 0;   // lightness just below the boundary
+  double ground_chroma = 0;
+};
+
+// Sub-pixel boundary near row r0 of full-size column x: where the colour
+// crosses half way from the local sky colour to the local ground colour.
+ColumnFit RefineColumn(const cv::Mat& bgr, const LabConverter& to_lab, int x, double y0, int window) {
+  const int h = bgr.rows;
+  auto at = [&](int r) { return to_lab(bgr.at<cv::Vec3b>(std::clamp(r, 0, h - 1), x)); };
+  // Strongest step in the window.
+  int best = static_cast<int>(std::lround(y0));
+  float best_step = -1;
+  for (int r = static_cast<int>(std::lround(y0)) - window; r <= static_cast<int>(std::lround(y0)) + window; ++r) {
+    if (r < 1 || r >= h) continue;
+    const cv::Vec3f d = at(r) - at(r - 1);
+    const float m = std::sqrt(d.dot(d));
+    if (m > best_step) best_step = m, best = r;
+  }
+  ColumnFit fit;
+  if (best_step < 0) return fit;
+  cv::Vec3f sky(0, 0, 0), ground(0, 0, 0);
+  for (int k = 2; k <= 4; ++k) sky += at(best - 1 - k), ground += at(best + k);
+  sky *= 1.0f / 3, ground *= 1.0f / 3;
+  const cv::Vec3f d = sky - ground;
+  const float dd = d.dot(d);
+  fit.contrast = std::sqrt(dd);
+  fit.ground_l = ground[0];
+  fit.ground_chroma = std::sqrt(ground[1] * ground[1] + ground[2] * ground[2]);
+  if (dd < 1e-6f) return fit;
+  auto t = [&](int r) { return (at(r) - ground).dot(d) / dd; };  // 1 sky, 0 ground
+  for (int r = best - 2; r <= best + 2; ++r) {
+    const float t0 = t(r - 1), t1 = t(r);
+    if (t0 >= 0.5f && t1 < 0.5f) {
+      fit.y = (r - 0.5) + (t0 - 0.5) / (t0 - t1);
+      return fit;
+    }
+  }
+  fit.y = best;
+  return fit;
+}
+
+}  // namespace
+
+void SkylineOptions::Check() const {
+  auto fail = [](const char* field, double v, const char* rule) {
+    std::ostringstream m;
+    m << "SkylineOptions::" << field << " = " << v << "; violated: " << rule;
+    throw InvalidArgument(m.str());
+  };
+  if (roll_hint_deg && !(std::abs(*roll_hint_deg) <= 45.0)) fail("roll_hint_deg", *roll_hint_deg, "|roll| <= 45");
+  if (max_work_width_px < 64) fail("max_work_width_px", max_work_width_px, ">= 64");
+  if (!(smoothness > 0.0)) fail("smoothness", smoothness, "> 0");
+  if (!(edge_weight >= 0.0)) fail("edge_weight", edge_weight, ">= 0");
+  if (!(min_contrast >= 0.0)) fail("min_contrast", min_contrast, ">= 0");
+}
+
+int Skyline::VisibleCount() const {
+  return static_cast<int>(std::count_if(y.begin(), y.end(), [](double v) { return std::isfinite(v); }));
+}
+
+Skyline ExtractSkyline(const cv::Mat& image, const SkylineOptions& options) {
+  options.Check();
+  if (image.empty() || image.depth() != CV_8U || (image.channels() != 1 && image.channels() != 3 && image.channels() != 4))
+    throw InvalidArgument("skyline: the image must be a non-empty 8-bit grey, BGR or BGRA image");
+  Skyline out;
+  out.width = image.cols;
+  out.height = image.rows;
+  out.y.assign(image.cols, NAN);
+  out.confidence.assign(image.cols, 0.0);
+  if (image.rows < 8 || image.cols < 8) return out;
+
+  cv::Mat bgr;
+  if (image.channels() == 1) cv::cvtColor(image, bgr, cv::COLOR_GRAY2BGR);
+  else if (image.channels() == 4) cv::cvtColor(image, bgr, cv::COLOR_BGRA2BGR);
+  else bgr = image;
+  const LabConverter to_lab;
+
+  // Search at a bounded width, on a lightly blurred image.
+  const double scale = std::min(1.0, static_cast<double>(options.max_work_width_px) / image.cols);
+  cv::Mat small;
+  if (scale < 1.0) cv::resize(bgr, small, cv::Size(), scale, scale, cv::INTER_AREA);
+  else small = bgr;
+  cv::Mat work = to_lab.Convert(small);
+  cv::GaussianBlur(work, work, cv::Size(5, 5), 1.0);
+  cv::Mat work_t;
+  cv::transpose(work, work_t);  // one row per column
+
+  const double roll_rad = DegToRad(options.roll_hint_deg.value_or(0.0));
+  const double slope = -std::tan(roll_rad);  // positive roll: the skyline rises to the right
+  const cv::Mat steps = BoundarySteps(work_t);
+  std::vector<int> boundary = SolveBoundary(SkyScoreFromTopBand(work_t), steps, options.smoothness,
+                                            options.edge_weight, slope);
+  const cv::Mat sky2 = SkyScoreFromHistograms(work_t, boundary);
+  boundary = SolveBoundary(sky2, steps, options.smoothness, options.edge_weight, slope);
+
+  // No sky: the region above the boundary must look like sky somewhere.
+  const int ww = work_t.rows, wh = work_t.cols;
+  {
+    double sky_px = 0;
+    for (int c = 0; c < ww; ++c) sky_px += boundary[c];
+    if (sky_px < 0.01 * ww * wh) return out;
+  }
+
+  // Refine each full-size column around the (interpolated) boundary.
+  std::vector<ColumnFit> fits(image.cols);
+  const int window = static_cast<int>(std::ceil(1.0 / scale)) + 2;
+  for (int x = 0; x < image.cols; ++x) {
+    const double wc = std::clamp((x + 0.5) * scale - 0.5, 0.0, ww - 1.0);
+    const int c0 = static_cast<int>(wc), c1 = std::min(c0 + 1, ww - 1);
+    const double f = wc - c0;
+    const double yb = ((1 - f) * boundary[c0] + f * boundary[c1]) / scale;
+    if (yb <= 1.0 || yb >= image.rows - 1.0) continue;  // no boundary inside the image
+    fits[x] = RefineColumn(bgr, to_lab, x, yb, window);
+  }
+  // Occluders (trees, poles) are much darker than the terrain horizon.
+  std::vector<double> lights;
+  for (const ColumnFit& f : fits)
+    if (std::isfinite(f.y) && f.contrast >= options.min_contrast) lights.push_back(f.ground_l);
+  double typical_l = 0;
+  if (!lights.empty()) {
+    std::nth_element(lights.begin(), lights.begin() + lights.size() / 2, lights.end());
+    typical_l = lights[lights.size() / 2];
+  }
+  std::vector<uint8_t> occluded(image.cols, 0);
+  for (int x = 0; x < image.cols; ++x) {
+    const ColumnFit& f = fits[x];
+    if (std::isfinite(f.y) && f.ground_l < 0.6 * typical_l && f.ground_l < 40.0) occluded[x] = 1;
+  }
+  const int grow = std::max(2, image.cols / 300);  // the occluder's anti-aliased edges
+  std::vector<uint8_t> grown(occluded);
+  for (int x = 0; x < image.cols; ++x)
+    if (occluded[x])
+      for (int k = std::max(0, x - grow); k <= std::min(image.cols - 1, x + grow); ++k) grown[k] = 1;
+  for (int x = 0; x < image.cols; ++x) {
+    const ColumnFit& f = fits[x];
+    if (!std::isfinite(f.y) || grown[x] || f.contrast < options.min_contrast) continue;
+    out.y[x] = std::clamp(f.y, 0.0, static_cast<double>(image.rows));
+    out.confidence[x] = std::clamp((f.contrast - options.min_contrast) / 20.0, 0.05, 1.0);
+  }
+  return out;
+}
+
+cv::Mat DrawSkylineDebug(const cv::Mat& image, const Skyline& skyline) {
+  cv::Mat canvas;
+  if (image.channels() == 1) cv::cvtColor(image, canvas, cv::COLOR_GRAY2BGR);
+  else if (image.channels() == 4) cv::cvtColor(image, canvas, cv::COLOR_BGRA2BGR);
+  else canvas = image.clone();
+  const int thick = std::max(1, image.cols / 600);
+  for (int x = 0; x < skyline.width; ++x) {
+    if (!std::isfinite(skyline.y[x])) {
+      cv::line(canvas, {x, 0}, {x, std::max(4, image.rows / 60)}, cv::Scalar(255, 0, 255), 1);
+      continue;
+    }
+    const double c = skyline.confidence[x];
+    const cv::Scalar colour(0, 255 * c, 255 * (1 - c));  // red (low) to green (high)
+    cv::circle(canvas, {x, static_cast<int>(std::lround(skyline.y[x]))}, thick, colour, cv::FILLED);
+  }
+  return canvas;
+}
+
+}  // namespace horizonreg

@@ -1,0 +1,48 @@
+// SPDX-License-Identifier: MIT
+// Skyline extraction: the boundary between sky and terrain in a photo, one
+// sub-pixel y per column, with a confidence, and null where the terrain
+// horizon is not seen (trees or poles in front of it, fog, no sky).
+// Paper, section 3.1 (Sobel edges scanned from the top, one point per column
+// under continuity constraints); here solved globally by dynamic programming
+// over columns with a colour model of sky and ground learnt from the image.
+#pragma once
+
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace cv {
+class Mat;
+}
+
+namespace horizonreg {
+
+struct SkylineOptions {
+  std::optional<double> roll_hint_deg;  // Inclinometer roll (conventions.h): tilts the search.
+  int max_work_width_px = 512;          // Images are searched at most this wide, then refined at full size.
+  double smoothness = 1.5;              // DP cost per pixel of jump between neighbouring columns.
+  double edge_weight = 1.0;             // DP reward per unit of colour step (CIELAB delta E) at the boundary.
+  double min_contrast = 6.0;            // Columns whose sky/ground colours differ less (delta E) are null.
+  void Check() const;                   // Throws InvalidArgument naming the field.
+};
+
+struct Skyline {
+  int width = 0, height = 0;
+  // Per column: y of the sky/terrain boundary in pixels (DESIGN.md image
+  // coordinates: the first terrain pixel row r has its top edge at y = r),
+  // NaN where the horizon is not visible.
+  std::vector<double> y;
+  std::vector<double> confidence;  // [0, 1] per column; 0 where y is NaN
+  int VisibleCount() const;
+};
+
+// Extracts the skyline of an 8-bit image (1, 3 or 4 channels, OpenCV BGR
+// order). A uniform, all-sky or all-ground image gives all-null output.
+// Throws InvalidArgument for an empty image or bad options. Thread-safe.
+Skyline ExtractSkyline(const cv::Mat& image, const SkylineOptions& options);
+
+// Draws the skyline over the image (coloured by confidence, null columns
+// marked at the top edge) for inspection.
+cv::Mat DrawSkylineDebug(const cv::Mat& image, const Skyline& skyline);
+
+}  // namespace horizonreg
