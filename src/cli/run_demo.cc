@@ -80,8 +80,8 @@ int RunDemo(const DemoArgs& a) {
   }
   auto ms = [](auto d) { return std::chrono::duration<double, std::milli>(d).count(); };
   std::printf("horizonreg demo: DEM %s (%d x %d posts)\n", dem.c_str(), g.width, g.height);
-  std::printf("  observer      %.6f, %.6f, ground %.1f m, eye %.1f m\n", lat, lon, observer.height_m - 1.7,
-              observer.height_m);
+  std::printf("  observer      %.6f, %.6f, ground %.1f m, eye %.1f m\n", lat, lon,
+              whole.HeightAt(lat, lon).value_or(NAN), observer.height_m);
   std::printf("  horizon       %d bins of %.2f deg, %d with terrain, %zu inner ridge points\n", profile.size(),
               profile.azimuth_step_deg, valid, ridge_points);
   std::printf("  highest       azimuth %.2f deg, elevation %.3f deg, %.1f km away\n", profile.AzimuthDeg(hi),
