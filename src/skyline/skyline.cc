@@ -18,6 +18,7 @@ constexpr int kHistBins = 16;          // per CIELAB axis
 constexpr float kColourWeight = 0.25f;  // DP cost per misclassified pixel (edges weigh 1 per delta E)
 constexpr float kEdgeAboveWeight = 0.5f;  // DP cost per delta E of sharp steps left above the boundary
 constexpr float kEdgeNoise = 4.0f;        // delta E of a step that is still noise or a soft cloud edge
+constexpr float kEdgeCap = 12.0f;         // delta E above which a step counts as fully an edge
 
 inline int HistIndex(const cv::Vec3f& lab) {
   const int l = std::clamp(static_cast<int>(lab[0] * (kHistBins / 100.0f)), 0, kHistBins - 1);
@@ -88,14 +89,20 @@ cv::Mat SkyScoreFromTopBand(const cv::Mat& lab_t) {
   for (int c = 0; c < w; ++c) {
     const cv::Vec3f* row = lab_t.ptr<cv::Vec3f>(c);
     float* out = s.ptr<float>(c);
+    // Reference lightness: the lightest blue sky seen so far down this
+    // column (skies lighten towards the horizon; white clouds are left out).
+    float ref = lm;
     for (int r = 0; r < h; ++r) {
       const cv::Vec3f v = row[r];
-      // Sky: not darker than the top band (skies lighten towards the
-      // horizon) and blue or neutral in hue (clouds, haze); terrain is
-      // darker or green, yellow, brown or red.
-      const float dark = Sigmoid(((lm - 6.0f) - v[0]) / 2.5f);
+      // Sky: not darker than the sky above it, blue or neutral in hue
+      // (clouds, haze); terrain is darker or green, yellow, brown or red.
+      const float dark = Sigmoid(((ref - 6.0f) - v[0]) / 2.5f);
       const float warm = std::min(1.0f, Sigmoid((v[2] - 6.0f) / 2.0f) + Sigmoid((std::abs(v[1]) - 10.0f) / 2.0f));
-      out[r] = (1.0f - dark) * (1.0f - warm);
+      // Saturated blue is sky however dark (deep sky, sky below distant
+      // terrain); haze on far ridges is paler than that.
+      const float deep_blue = Sigmoid((-v[2] - 25.0f) / 3.0f);
+      out[r] = std::max((1.0f - dark), deep_blue) * (1.0f - warm);
+      if (v[2] < -8.0f && out[r] > 0.5f) ref = std::max(ref, v[0]);
     }
   }
   return s;
@@ -131,9 +138,10 @@ cv::Mat SkyScoreFromHistograms(const cv::Mat& lab_t, const std::vector<int>& bou
   return s;
 }
 
-// Colour step between rows y-1 and y (delta E of the blurred image), for
-// y in [0, h]; steps where the upper side is darker count half (sky is
-// usually the brighter side). One row per image column.
+// Colour step between rows y-1 and y: delta E between the means of rows
+// (y, y+1) and (y-2, y-1) of the unblurred image, for y in [0, h]. Steps
+// where the upper side is darker count half (sky is usually the brighter
+// side). One row per image column.
 cv::Mat BoundarySteps(const cv::Mat& lab_t) {
   const int w = lab_t.rows, h = lab_t.cols;
   cv::Mat e(w, h + 1, CV_32F, cv::Scalar(0));
@@ -141,8 +149,12 @@ cv::Mat BoundarySteps(const cv::Mat& lab_t) {
     const cv::Vec3f* row = lab_t.ptr<cv::Vec3f>(c);
     float* out = e.ptr<float>(c);
     for (int y = 1; y < h; ++y) {
-      const cv::Vec3f d = row[y] - row[y - 1];
-      const float mag = std::sqrt(d.dot(d));
+      const cv::Vec3f below = 0.5f * (row[y] + row[std::min(y + 1, h - 1)]);
+      const cv::Vec3f above = 0.5f * (row[y - 1] + row[std::max(y - 2, 0)]);
+      const cv::Vec3f d = below - above;
+      // Any clear edge may be the skyline, not only the strongest: the
+      // reward saturates (a faint far ridge above a contrasty near one).
+      const float mag = std::min(std::sqrt(d.dot(d)), kEdgeCap);
       out[y] = d[0] > 2.0f ? 0.5f * mag : mag;
     }
   }
@@ -169,7 +181,8 @@ std::vector<int> SolveBoundary(const cv::Mat& sky_t, const cv::Mat& steps_t, dou
     float above = 0, edges_above = 0;
     for (int y = 0; y <= h; ++y) {
       data[y] = kColourWeight * (above + below) + kEdgeAboveWeight * edges_above - lambda * e[y];
-      if (y < h) above += 1.0f - s[y], below -= s[y], edges_above += std::max(0.0f, e[y] - kEdgeNoise);
+      // (a step into sky-coloured pixels is not a terrain edge)
+      if (y < h) above += 1.0f - s[y], below -= s[y], edges_above += std::max(0.0f, e[y] - kEdgeNoise) * (1.0f - s[y]);
     }
   };
   data_cost(0);
@@ -285,14 +298,15 @@ Skyline ExtractSkyline(const cv::Mat& image, const SkylineOptions& options) {
   cv::Mat small;
   if (scale < 1.0) cv::resize(bgr, small, cv::Size(), scale, scale, cv::INTER_AREA);
   else small = bgr;
-  cv::Mat work = to_lab.Convert(small);
-  cv::GaussianBlur(work, work, cv::Size(5, 5), 1.0);
-  cv::Mat work_t;
+  const cv::Mat sharp = to_lab.Convert(small);
+  cv::Mat work, work_t, sharp_t;
+  cv::GaussianBlur(sharp, work, cv::Size(5, 5), 1.0);
   cv::transpose(work, work_t);  // one row per column
+  cv::transpose(sharp, sharp_t);
 
   const double roll_rad = DegToRad(options.roll_hint_deg.value_or(0.0));
   const double slope = -std::tan(roll_rad);  // positive roll: the skyline rises to the right
-  const cv::Mat steps = BoundarySteps(work_t);
+  const cv::Mat steps = BoundarySteps(sharp_t);
   std::vector<int> boundary = SolveBoundary(SkyScoreFromTopBand(work_t), steps, options.smoothness,
                                             options.edge_weight, slope);
   const cv::Mat sky2 = SkyScoreFromHistograms(work_t, boundary);
