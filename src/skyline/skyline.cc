@@ -167,7 +167,7 @@ cv::Mat BoundarySteps(const cv::Mat& lab_t) {
 std::vector<int> SolveBoundary(const cv::Mat& sky_t, const cv::Mat& steps_t, double smoothness, double edge_weight,
                                double slope_px_per_col) {
   const int w = sky_t.rows, h = sky_t.cols, n = h + 1;
-  std::vector<float> prev(n), cur(n), data(n), tmp(n);
+  std::vector<float> prev(n), cur(n), data(n), tmp(n), pen(n + 1);
   std::vector<int> arg(static_cast<size_t>(w) * n), targ(n);
   const float beta = static_cast<float>(smoothness), lambda = static_cast<float>(edge_weight);
   auto data_cost = [&](int c) {
@@ -177,12 +177,18 @@ std::vector<int> SolveBoundary(const cv::Mat& sky_t, const cv::Mat& steps_t, dou
     for (int r = 0; r < h; ++r) below += s[r];
     // Sharp colour steps above the boundary are terrain edges left in the
     // sky (the paper scans from the top for the first edge): each costs its
-    // excess over the noise level. Clouds and sky gradients step softly.
-    float above = 0, edges_above = 0;
+    // excess over the noise level, unless it leads into sky-coloured pixels
+    // (within 2 rows). Steps within 2 rows above the boundary are its own
+    // (the 4-tap step spreads an edge over 3 rows).
+    pen[0] = 0;
+    for (int y = 0; y < h; ++y) {
+      const float s_after = std::max({s[y], s[std::min(y + 1, h - 1)], s[std::min(y + 2, h - 1)]});
+      pen[y + 1] = pen[y] + std::max(0.0f, e[y] - kEdgeNoise) * (1.0f - s_after);
+    }
+    float above = 0;
     for (int y = 0; y <= h; ++y) {
-      data[y] = kColourWeight * (above + below) + kEdgeAboveWeight * edges_above - lambda * e[y];
-      // (a step into sky-coloured pixels is not a terrain edge)
-      if (y < h) above += 1.0f - s[y], below -= s[y], edges_above += std::max(0.0f, e[y] - kEdgeNoise) * (1.0f - s[y]);
+      data[y] = kColourWeight * (above + below) + kEdgeAboveWeight * pen[std::max(0, y - 2)] - lambda * e[y];
+      if (y < h) above += 1.0f - s[y], below -= s[y];
     }
   };
   data_cost(0);
