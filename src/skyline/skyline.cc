@@ -223,7 +223,7 @@ struct ColumnFit {
   double y = NAN;
   double contrast = 0;   // delta E between the local sky and ground colours
   double ground_l = 0;   // lightness just below the boundary
-  double ground_chroma = 0;
+  double ground_green = 0;  // -a* just below the boundary (positive = green)
 };
 
 // Sub-pixel boundary near row r0 of full-size column x: where the colour
@@ -249,7 +249,7 @@ ColumnFit RefineColumn(const cv::Mat& bgr, const LabConverter& to_lab, int x, do
   const float dd = d.dot(d);
   fit.contrast = std::sqrt(dd);
   fit.ground_l = ground[0];
-  fit.ground_chroma = std::sqrt(ground[1] * ground[1] + ground[2] * ground[2]);
+  fit.ground_green = -ground[1];
   if (dd < 1e-6f) return fit;
   auto t = [&](int r) { return (at(r) - ground).dot(d) / dd; };  // 1 sky, 0 ground
   for (int r = best - 2; r <= best + 2; ++r) {
@@ -337,19 +337,36 @@ Skyline ExtractSkyline(const cv::Mat& image, const SkylineOptions& options) {
     if (yb <= 1.0 || yb >= image.rows - 1.0) continue;  // no boundary inside the image
     fits[x] = RefineColumn(bgr, to_lab, x, yb, window);
   }
-  // Occluders (trees, poles) are much darker than the terrain horizon.
-  std::vector<double> lights;
-  for (const ColumnFit& f : fits)
-    if (std::isfinite(f.y) && f.contrast >= options.min_contrast) lights.push_back(f.ground_l);
-  double typical_l = 0;
-  if (!lights.empty()) {
-    std::nth_element(lights.begin(), lights.begin() + lights.size() / 2, lights.end());
-    typical_l = lights[lights.size() / 2];
-  }
+  // Occluders: trees and poles stand in front of the horizon as narrow
+  // spikes with near-vertical flanks (terrain flanks are far less steep in
+  // the image), or as dark green or black silhouettes.
   std::vector<uint8_t> occluded(image.cols, 0);
-  for (int x = 0; x < image.cols; ++x) {
-    const ColumnFit& f = fits[x];
-    if (std::isfinite(f.y) && f.ground_l < 0.6 * typical_l && f.ground_l < 40.0) occluded[x] = 1;
+  {
+    const int w = image.cols;
+    const double steep = 5.0;  // px of rise per column
+    const int max_width = std::max(8, w / 8);
+    auto y_at = [&](int x) { return fits[std::clamp(x, 0, w - 1)].y; };
+    std::vector<int> flank(w, 0);  // -1 rising to the right, +1 falling
+    for (int x = 0; x < w; ++x) {
+      const double d = 0.5 * (y_at(x + 1) - y_at(x - 1));
+      if (std::isfinite(d) && std::abs(d) > steep) flank[x] = d < 0 ? -1 : 1;
+    }
+    for (int x = 0; x < w; ++x) {
+      if (flank[x] != -1) continue;
+      // A rising flank, then a falling one within max_width (or the image edge).
+      int end = -1;
+      for (int k = x + 1; k < std::min(w, x + max_width); ++k)
+        if (flank[k] == 1) end = k;
+      if (end < 0 && w - x < max_width) end = w - 1;
+      if (end >= 0) std::fill(occluded.begin() + x, occluded.begin() + end + 1, uint8_t{1});
+    }
+    for (int x = w - 1; x >= 0; --x)  // a falling flank near the left edge
+      if (flank[x] == 1 && x < max_width && std::none_of(flank.begin(), flank.begin() + x, [](int f) { return f == -1; }))
+        std::fill(occluded.begin(), occluded.begin() + x + 1, uint8_t{1});
+    for (int x = 0; x < w; ++x) {
+      const ColumnFit& f = fits[x];
+      if (std::isfinite(f.y) && f.ground_l < 35.0 && (f.ground_l < 15.0 || f.ground_green > 5.0)) occluded[x] = 1;
+    }
   }
   const int grow = std::max(2, image.cols / 300);  // the occluder's anti-aliased edges
   std::vector<uint8_t> grown(occluded);
