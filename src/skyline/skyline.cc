@@ -339,7 +339,8 @@ Skyline ExtractSkyline(const cv::Mat& image, const SkylineOptions& options) {
   }
   // Occluders: trees and poles stand in front of the horizon as narrow
   // spikes with near-vertical flanks (terrain flanks are far less steep in
-  // the image), or as dark green or black silhouettes.
+  // the image), or as dark green or black silhouettes, much darker than the
+  // image's typical horizon terrain.
   std::vector<uint8_t> occluded(image.cols, 0);
   {
     const int w = image.cols;
@@ -347,9 +348,12 @@ Skyline ExtractSkyline(const cv::Mat& image, const SkylineOptions& options) {
     const int max_width = std::max(8, w / 8);
     auto y_at = [&](int x) { return fits[std::clamp(x, 0, w - 1)].y; };
     std::vector<int> flank(w, 0);  // -1 rising to the right, +1 falling
+    // A flank: steep here and rising a good height over 6 columns.
+    const double min_rise = std::max(15.0, 0.03 * image.rows);
     for (int x = 0; x < w; ++x) {
-      const double d = 0.5 * (y_at(x + 1) - y_at(x - 1));
-      if (std::isfinite(d) && std::abs(d) > steep) flank[x] = d < 0 ? -1 : 1;
+      const double d = 0.5 * (y_at(x + 1) - y_at(x - 1)), rise = y_at(x + 3) - y_at(x - 3);
+      if (std::isfinite(d) && std::abs(d) > steep && std::abs(rise) > min_rise && d * rise > 0)
+        flank[x] = d < 0 ? -1 : 1;
     }
     for (int x = 0; x < w; ++x) {
       if (flank[x] != -1) continue;
@@ -363,9 +367,18 @@ Skyline ExtractSkyline(const cv::Mat& image, const SkylineOptions& options) {
     for (int x = w - 1; x >= 0; --x)  // a falling flank near the left edge
       if (flank[x] == 1 && x < max_width && std::none_of(flank.begin(), flank.begin() + x, [](int f) { return f == -1; }))
         std::fill(occluded.begin(), occluded.begin() + x + 1, uint8_t{1});
+    std::vector<double> lights;
+    for (const ColumnFit& f : fits)
+      if (std::isfinite(f.y)) lights.push_back(f.ground_l);
+    double typical_l = 0;
+    if (!lights.empty()) {
+      std::nth_element(lights.begin(), lights.begin() + lights.size() / 2, lights.end());
+      typical_l = lights[lights.size() / 2];
+    }
     for (int x = 0; x < w; ++x) {
       const ColumnFit& f = fits[x];
-      if (std::isfinite(f.y) && f.ground_l < 35.0 && (f.ground_l < 15.0 || f.ground_green > 5.0)) occluded[x] = 1;
+      const bool dark = f.ground_l < 12.0 || (f.ground_l < 35.0 && f.ground_l < 0.6 * typical_l && f.ground_green > 4.0);
+      if (std::isfinite(f.y) && dark) occluded[x] = 1;
     }
   }
   const int grow = std::max(2, image.cols / 300);  // the occluder's anti-aliased edges
