@@ -344,7 +344,7 @@ Skyline ExtractSkyline(const cv::Mat& image, const SkylineOptions& options) {
   std::vector<uint8_t> occluded(image.cols, 0);
   {
     const int w = image.cols;
-    const double steep = 5.0;  // px of rise per column
+    const double steep = 3.5;  // px of rise per column
     const int max_width = std::max(8, w / 8);
     auto y_at = [&](int x) { return fits[std::clamp(x, 0, w - 1)].y; };
     std::vector<int> flank(w, 0);  // -1 rising to the right, +1 falling
@@ -381,7 +381,7 @@ Skyline ExtractSkyline(const cv::Mat& image, const SkylineOptions& options) {
       if (std::isfinite(f.y) && dark) occluded[x] = 1;
     }
   }
-  const int grow = std::max(2, image.cols / 300);  // the occluder's anti-aliased edges
+  const int grow = std::max(3, image.cols / 128);  // the occluder's edges and the DP's way round it
   std::vector<uint8_t> grown(occluded);
   for (int x = 0; x < image.cols; ++x)
     if (occluded[x])
