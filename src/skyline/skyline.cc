@@ -161,11 +161,32 @@ cv::Mat BoundarySteps(const cv::Mat& lab_t) {
   return e;
 }
 
+// Cost of leaving the colour step at row y above the boundary: its excess
+// over the noise level, unless it leads (within 2 rows) into blue sky, as at
+// the sky dome's own horizon. Steps into white count: snow is sharp where
+// clouds are soft.
+cv::Mat EdgeAbovePenalty(const cv::Mat& steps_t, const cv::Mat& sky_t, const cv::Mat& lab_t) {
+  const int w = sky_t.rows, h = sky_t.cols;
+  cv::Mat pen(w, h, CV_32F);
+  for (int c = 0; c < w; ++c) {
+    const float* e = steps_t.ptr<float>(c);
+    const float* s = sky_t.ptr<float>(c);
+    const cv::Vec3f* lab = lab_t.ptr<cv::Vec3f>(c);
+    float* out = pen.ptr<float>(c);
+    for (int y = 0; y < h; ++y) {
+      float blue_sky = 0;
+      for (int k = y; k <= std::min(y + 2, h - 1); ++k) blue_sky = std::max(blue_sky, s[k] * Sigmoid((-lab[k][2] - 8.0f) / 2.0f));
+      out[y] = std::max(0.0f, e[y] - kEdgeNoise) * (1.0f - blue_sky);
+    }
+  }
+  return pen;
+}
+
 // Globally best boundary (one y in [0, h] per column): misclassified pixels
 // (sky below or non-sky above) minus the colour step at the boundary, plus
 // `smoothness` per pixel of jump, around the slope expected from the roll.
-std::vector<int> SolveBoundary(const cv::Mat& sky_t, const cv::Mat& steps_t, double smoothness, double edge_weight,
-                               double slope_px_per_col) {
+std::vector<int> SolveBoundary(const cv::Mat& sky_t, const cv::Mat& steps_t, const cv::Mat& penalty_t,
+                               double smoothness, double edge_weight, double slope_px_per_col) {
   const int w = sky_t.rows, h = sky_t.cols, n = h + 1;
   std::vector<float> prev(n), cur(n), data(n), tmp(n), pen(n + 1);
   std::vector<int> arg(static_cast<size_t>(w) * n), targ(n);
@@ -180,11 +201,9 @@ std::vector<int> SolveBoundary(const cv::Mat& sky_t, const cv::Mat& steps_t, dou
     // excess over the noise level, unless it leads into sky-coloured pixels
     // (within 2 rows). Steps within 2 rows above the boundary are its own
     // (the 4-tap step spreads an edge over 3 rows).
+    const float* p = penalty_t.ptr<float>(c);
     pen[0] = 0;
-    for (int y = 0; y < h; ++y) {
-      const float s_after = std::max({s[y], s[std::min(y + 1, h - 1)], s[std::min(y + 2, h - 1)]});
-      pen[y + 1] = pen[y] + std::max(0.0f, e[y] - kEdgeNoise) * (1.0f - s_after);
-    }
+    for (int y = 0; y < h; ++y) pen[y + 1] = pen[y] + p[y];
     float above = 0;
     for (int y = 0; y <= h; ++y) {
       data[y] = kColourWeight * (above + below) + kEdgeAboveWeight * pen[std::max(0, y - 2)] - lambda * e[y];
@@ -313,10 +332,12 @@ Skyline ExtractSkyline(const cv::Mat& image, const SkylineOptions& options) {
   const double roll_rad = DegToRad(options.roll_hint_deg.value_or(0.0));
   const double slope = -std::tan(roll_rad);  // positive roll: the skyline rises to the right
   const cv::Mat steps = BoundarySteps(sharp_t);
-  std::vector<int> boundary = SolveBoundary(SkyScoreFromTopBand(work_t), steps, options.smoothness,
-                                            options.edge_weight, slope);
+  const cv::Mat sky1 = SkyScoreFromTopBand(work_t);
+  std::vector<int> boundary =
+      SolveBoundary(sky1, steps, EdgeAbovePenalty(steps, sky1, work_t), options.smoothness, options.edge_weight, slope);
   const cv::Mat sky2 = SkyScoreFromHistograms(work_t, boundary);
-  boundary = SolveBoundary(sky2, steps, options.smoothness, options.edge_weight, slope);
+  boundary =
+      SolveBoundary(sky2, steps, EdgeAbovePenalty(steps, sky2, work_t), options.smoothness, options.edge_weight, slope);
 
   // No sky: the region above the boundary must look like sky somewhere.
   const int ww = work_t.rows, wh = work_t.cols;
