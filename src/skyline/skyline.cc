@@ -168,15 +168,24 @@ cv::Mat BoundarySteps(const cv::Mat& lab_t) {
 cv::Mat EdgeAbovePenalty(const cv::Mat& steps_t, const cv::Mat& sky_t, const cv::Mat& lab_t) {
   const int w = sky_t.rows, h = sky_t.cols;
   cv::Mat pen(w, h, CV_32F);
+  std::vector<float> blue(h);  // blue-sky likeness, where a step's far side needs it
   for (int c = 0; c < w; ++c) {
     const float* e = steps_t.ptr<float>(c);
     const float* s = sky_t.ptr<float>(c);
     const cv::Vec3f* lab = lab_t.ptr<cv::Vec3f>(c);
     float* out = pen.ptr<float>(c);
+    // Row k's blue-sky likeness is needed by the steps at k, k-1 and k-2.
+    for (int k = 0; k < h; ++k) {
+      const bool needed = e[k] > kEdgeNoise || (k >= 1 && e[k - 1] > kEdgeNoise) || (k >= 2 && e[k - 2] > kEdgeNoise);
+      blue[k] = needed ? s[k] * Sigmoid((-lab[k][2] - 8.0f) / 2.0f) : 0.0f;
+    }
     for (int y = 0; y < h; ++y) {
-      float blue_sky = 0;
-      for (int k = y; k <= std::min(y + 2, h - 1); ++k) blue_sky = std::max(blue_sky, s[k] * Sigmoid((-lab[k][2] - 8.0f) / 2.0f));
-      out[y] = std::max(0.0f, e[y] - kEdgeNoise) * (1.0f - blue_sky);
+      if (e[y] <= kEdgeNoise) {
+        out[y] = 0.0f;
+        continue;
+      }
+      const float blue_sky = std::max({blue[y], blue[std::min(y + 1, h - 1)], blue[std::min(y + 2, h - 1)]});
+      out[y] = (e[y] - kEdgeNoise) * (1.0f - blue_sky);
     }
   }
   return pen;
