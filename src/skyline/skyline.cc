@@ -18,7 +18,8 @@ constexpr int kHistBins = 16;          // per CIELAB axis
 constexpr float kColourWeight = 0.25f;  // DP cost per misclassified pixel (edges weigh 1 per delta E)
 constexpr float kEdgeAboveWeight = 0.5f;  // DP cost per delta E of sharp steps left above the boundary
 constexpr float kEdgeNoise = 4.0f;        // delta E of a step that is still noise or a soft cloud edge
-constexpr float kEdgeCap = 12.0f;         // delta E above which a step counts as fully an edge
+constexpr float kEdgeCap = 12.0f;
+constexpr float kSnowEdgeBoost = 2.0f;   // extra weight of a sharp step into white left above the boundary         // delta E above which a step counts as fully an edge
 
 inline int HistIndex(const cv::Vec3f& lab) {
   const int l = std::clamp(static_cast<int>(lab[0] * (kHistBins / 100.0f)), 0, kHistBins - 1);
@@ -185,7 +186,10 @@ cv::Mat EdgeAbovePenalty(const cv::Mat& steps_t, const cv::Mat& sky_t, const cv:
         continue;
       }
       const float blue_sky = std::max({blue[y], blue[std::min(y + 1, h - 1)], blue[std::min(y + 2, h - 1)]});
-      out[y] = (e[y] - kEdgeNoise) * (1.0f - blue_sky);
+      // A sharp step from blue into white is snow (clouds fade in softly).
+      const cv::Vec3f& after = lab[std::min(y + 2, h - 1)];
+      const float white = Sigmoid((after[0] - 80.0f) / 3.0f) * Sigmoid((6.0f - std::abs(after[2])) / 2.0f);
+      out[y] = (e[y] - kEdgeNoise) * (1.0f - blue_sky) * (1.0f + kSnowEdgeBoost * white);
     }
   }
   return pen;
