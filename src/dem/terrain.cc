@@ -12,6 +12,7 @@
 #include <cmath>
 #include <filesystem>
 #include <mutex>
+#include <optional>
 #include <sstream>
 
 #include "dem/npz_dem.h"
@@ -148,6 +149,25 @@ void PixelOfGeo(const Source& s, double x, double y, double& col, double& row) {
   row = (-s.gt[4] * dx + s.gt[1] * dy) / det - 0.5;
 }
 
+// A longitude moved by whole turns next to a geographic source's tile, so
+// that windows and lookups work across the antimeridian.
+double LonNearTile(const Source& s, double lon_deg) {
+  const double tile_mid = s.gt[0] + s.gt[1] * s.width / 2;
+  return lon_deg + std::round((tile_mid - lon_deg) / 360.0) * 360.0;
+}
+
+// Pixel-centre (col, row) of a WGS84 position in a source; nullopt when the
+// CRS transformation fails.
+std::optional<std::pair<double, double>> PixelOfLatLon(const Source& s, double lat_deg, double lon_deg) {
+  if (s.separable) return std::make_pair(s.ColOfX(LonNearTile(s, lon_deg)), s.RowOfY(lat_deg));
+  double x = lon_deg, y = lat_deg, z = 0;
+  if (!OCTTransform(static_cast<OGRCoordinateTransformationH>(s.from_wgs84.get()), 1, &x, &y, &z))
+    return std::nullopt;
+  double col, row;
+  PixelOfGeo(s, x, y, col, row);
+  return std::make_pair(col, row);
+}
+
 struct PixelWindow {
   int c0 = 0, r0 = 0, c1 = -1, r1 = -1;  // inclusive
   bool empty() const { return c1 < c0 || r1 < r0; }
@@ -161,18 +181,13 @@ PixelWindow WindowOf(const Source& s, const GeodeticPoint& c, double radius_m) {
     const double dlat = radius_m / 110000.0 + 1e-9;
     const double lat_hi = std::min(89.999, std::abs(c.lat_deg) + dlat);
     const double dlon = std::min(180.0, radius_m / (111000.0 * std::cos(DegToRad(lat_hi))));
-    const double x_lo = c.lon_deg - dlon, x_hi = c.lon_deg + dlon;
-    // Bring the tile's longitudes next to the observer's (antimeridian).
-    const double tile_mid = s.gt[0] + s.gt[1] * s.width / 2;
-    const double shift = std::round((tile_mid - c.lon_deg) / 360.0) * 360.0;
-    cmin = s.ColOfX(x_lo + shift), cmax = s.ColOfX(x_hi + shift);
+    const double lon = LonNearTile(s, c.lon_deg);
+    cmin = s.ColOfX(lon - dlon), cmax = s.ColOfX(lon + dlon);
     rmin = s.RowOfY(c.lat_deg + dlat), rmax = s.RowOfY(c.lat_deg - dlat);
   } else {
-    double x = c.lon_deg, y = c.lat_deg, z = 0;
-    if (!OCTTransform(static_cast<OGRCoordinateTransformationH>(s.from_wgs84.get()), 1, &x, &y, &z))
-      return {};
-    double col, row;
-    PixelOfGeo(s, x, y, col, row);
+    const auto px = PixelOfLatLon(s, c.lat_deg, c.lon_deg);
+    if (!px) return {};
+    const auto [col, row] = *px;
     // Metres per pixel along each axis, from the geotransform (projected CRS in metres).
     const double px_m = std::min(std::hypot(s.gt[1], s.gt[4]), std::hypot(s.gt[2], s.gt[5]));
     const double half = radius_m / px_m * 1.02 + 2.0;
@@ -324,18 +339,9 @@ const std::vector<std::string>& Terrain::paths() const { return impl_->paths; }
 
 bool Terrain::Covers(double lat_deg, double lon_deg) const {
   for (const Source& s : impl_->sources) {
-    PixelWindow w = WindowOf(s, {lat_deg, lon_deg, 0.0}, 0.0);
-    if (w.empty()) continue;
-    double col, row;
-    if (s.separable) {
-      const double tile_mid = s.gt[0] + s.gt[1] * s.width / 2;
-      const double lon = lon_deg + std::round((tile_mid - lon_deg) / 360.0) * 360.0;
-      col = s.ColOfX(lon), row = s.RowOfY(lat_deg);
-    } else {
-      double x = lon_deg, y = lat_deg, z = 0;
-      OCTTransform(static_cast<OGRCoordinateTransformationH>(s.from_wgs84.get()), 1, &x, &y, &z);
-      PixelOfGeo(s, x, y, col, row);
-    }
+    const auto px = PixelOfLatLon(s, lat_deg, lon_deg);
+    if (!px) continue;
+    const auto [col, row] = *px;
     if (col >= -1e-9 && row >= -1e-9 && col <= s.width - 1 + 1e-9 && row <= s.height - 1 + 1e-9) return true;
   }
   return false;
