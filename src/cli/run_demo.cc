@@ -11,6 +11,7 @@
 #include <iostream>
 
 #include "cli/commands.h"
+#include "cli/image_io.h"
 #include "cli/output.h"
 #include "overlay/horizon_plot.h"
 #include "util/errors.h"
@@ -68,7 +69,7 @@ int RunDemo(const DemoArgs& a) {
   std::snprintf(title, sizeof(title), "Jacksboro fault DEM (Cumberland Mts, TN): horizon from %.5f, %.5f, eye %.0f m",
                 lat, lon, observer.height_m);
   po.title = title;
-  PlotHorizon(profile, ridges, po, png_path);
+  WriteImage(png_path, PlotHorizon(profile, ridges, po));
 
   int hi = 0, valid = 0;
   size_t ridge_points = 0;

@@ -5,6 +5,7 @@
 #include <sstream>
 
 #include "cli/commands.h"
+#include "cli/image_io.h"
 #include "cli/output.h"
 #include "overlay/horizon_plot.h"
 #include "util/errors.h"
@@ -147,7 +148,7 @@ int RunHorizon(const HorizonArgs& a) {
     t << "Horizon from " << a.lat << ", " << a.lon << "  eye " << std::lround(observer.height_m) << " m"
       << "  step " << profile.azimuth_step_deg << " deg  k = " << profile.refraction;
     po.title = t.str();
-    PlotHorizon(profile, ridges, po, a.plot);
+    WriteImage(a.plot, PlotHorizon(profile, ridges, po));
   }
   WriteOutput(a.output, text);
   return 0;

@@ -3,8 +3,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <filesystem>
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <sstream>
 
@@ -37,8 +35,8 @@ void HorizonPlotOptions::Check() const {
     throw InvalidArgument("HorizonPlotOptions::height_px must be in 200..20000");
 }
 
-void PlotHorizon(const HorizonProfile& profile, const std::vector<std::vector<Ridge>>& ridges,
-                 const HorizonPlotOptions& options, const std::string& path) {
+cv::Mat PlotHorizon(const HorizonProfile& profile, const std::vector<std::vector<Ridge>>& ridges,
+                    const HorizonPlotOptions& options) {
   options.Check();
   const int w = options.width_px, h = options.height_px;
   const int left = 70, right = 20, top = 50, bottom = 60;
@@ -158,25 +156,7 @@ void PlotHorizon(const HorizonProfile& profile, const std::vector<std::vector<Ri
   cv::putText(img, "near", {lx - 40, ly + 11}, font, 0.4, ink, 1, cv::LINE_AA);
   cv::putText(img, Format(dmax / 1000.0, 0) + " km", {lx + 205, ly + 11}, font, 0.4, ink, 1, cv::LINE_AA);
 
-  // Write atomically: never leave a half-written file.
-  const std::filesystem::path out(path);
-  const std::filesystem::path tmp = out.parent_path() / ("." + out.filename().string() + ".tmp" + out.extension().string());
-  bool ok = false;
-  try {
-    ok = cv::imwrite(tmp.string(), img);
-  } catch (const cv::Exception&) {
-    ok = false;  // reported below with the file name
-  }
-  std::error_code ec;
-  if (!ok) {
-    std::filesystem::remove(tmp, ec);
-    throw IoError("plot: cannot write '" + path + "'");
-  }
-  std::filesystem::rename(tmp, out, ec);
-  if (ec) {
-    std::filesystem::remove(tmp, ec);
-    throw IoError("plot: cannot write '" + path + "': " + ec.message());
-  }
+  return img;
 }
 
 }  // namespace horizonreg

@@ -8,6 +8,10 @@
 
 #include "horizon/horizon.h"
 
+namespace cv {
+class Mat;
+}
+
 namespace horizonreg {
 
 struct HorizonPlotOptions {
@@ -17,10 +21,9 @@ struct HorizonPlotOptions {
   void Check() const;
 };
 
-// Writes the chart to `path` (PNG or any format OpenCV writes, by extension).
-// `ridges` may be empty. Throws IoError when the file cannot be written,
-// InvalidArgument on bad options.
-void PlotHorizon(const HorizonProfile& profile, const std::vector<std::vector<Ridge>>& ridges,
-                 const HorizonPlotOptions& options, const std::string& path);
+// Draws the chart (8-bit BGR, width_px x height_px); the caller writes it.
+// `ridges` may be empty. Throws InvalidArgument on bad options.
+cv::Mat PlotHorizon(const HorizonProfile& profile, const std::vector<std::vector<Ridge>>& ridges,
+                    const HorizonPlotOptions& options);
 
 }  // namespace horizonreg
