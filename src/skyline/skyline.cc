@@ -295,6 +295,61 @@ ColumnFit RefineColumn(const cv::Mat& bgr, const LabConverter& to_lab, int x, do
   return fit;
 }
 
+std::vector<uint8_t> FindOccluders(const std::vector<ColumnFit>& fits, int image_rows) {
+  // Occluders: trees and poles stand in front of the horizon as narrow
+  // spikes with near-vertical flanks (terrain flanks are far less steep in
+  // the image), or as dark green or black silhouettes, much darker than the
+  // image's typical horizon terrain.
+  const int w = static_cast<int>(fits.size());
+  std::vector<uint8_t> occluded(w, 0);
+  const double steep = 3.5;  // px of rise per column
+  const int max_width = std::max(8, w / 8);
+  auto y_at = [&](int x) { return fits[std::clamp(x, 0, w - 1)].y; };
+  std::vector<int> flank(w, 0);  // -1 rising to the right, +1 falling
+  // A flank: steep here and rising a good height over 6 columns.
+  const double min_rise = std::max(15.0, 0.03 * image_rows);
+  for (int x = 0; x < w; ++x) {
+    const double d = 0.5 * (y_at(x + 1) - y_at(x - 1)), rise = y_at(x + 3) - y_at(x - 3);
+    if (std::isfinite(d) && std::abs(d) > steep && std::abs(rise) > min_rise && d * rise > 0)
+      flank[x] = d < 0 ? -1 : 1;
+  }
+  for (int x = 0; x < w; ++x) {
+    if (flank[x] != -1) continue;
+    // A rising flank, then a falling one within max_width (or the image edge).
+    int end = -1;
+    for (int k = x + 1; k < std::min(w, x + max_width); ++k)
+      if (flank[k] == 1) end = k;
+    if (end < 0 && w - x < max_width) end = w - 1;
+    if (end >= 0) std::fill(occluded.begin() + x, occluded.begin() + end + 1, uint8_t{1});
+  }
+  for (int x = w - 1; x >= 0; --x)  // a falling flank near the left edge
+    if (flank[x] == 1 && x < max_width && std::none_of(flank.begin(), flank.begin() + x, [](int f) { return f == -1; }))
+      std::fill(occluded.begin(), occluded.begin() + x + 1, uint8_t{1});
+  std::vector<double> lights;
+  for (const ColumnFit& f : fits)
+    if (std::isfinite(f.y)) lights.push_back(f.ground_l);
+  double typical_l = 0;
+  if (!lights.empty()) {
+    std::nth_element(lights.begin(), lights.begin() + lights.size() / 2, lights.end());
+    typical_l = lights[lights.size() / 2];
+  }
+  for (int x = 0; x < w; ++x) {
+    const ColumnFit& f = fits[x];
+    const bool dark = f.ground_l < 12.0 || (f.ground_l < 35.0 && f.ground_l < 0.6 * typical_l && f.ground_green > 4.0);
+    if (std::isfinite(f.y) && dark) occluded[x] = 1;
+  }
+  return occluded;
+}
+
+// The image as 8-bit BGR (grey and BGRA converted, BGR shared).
+cv::Mat ToBgr(const cv::Mat& image) {
+  cv::Mat bgr;
+  if (image.channels() == 1) cv::cvtColor(image, bgr, cv::COLOR_GRAY2BGR);
+  else if (image.channels() == 4) cv::cvtColor(image, bgr, cv::COLOR_BGRA2BGR);
+  else bgr = image;
+  return bgr;
+}
+
 }  // namespace
 
 void SkylineOptions::Check() const {
@@ -325,10 +380,7 @@ Skyline ExtractSkyline(const cv::Mat& image, const SkylineOptions& options) {
   out.confidence.assign(image.cols, 0.0);
   if (image.rows < 8 || image.cols < 8) return out;
 
-  cv::Mat bgr;
-  if (image.channels() == 1) cv::cvtColor(image, bgr, cv::COLOR_GRAY2BGR);
-  else if (image.channels() == 4) cv::cvtColor(image, bgr, cv::COLOR_BGRA2BGR);
-  else bgr = image;
+  const cv::Mat bgr = ToBgr(image);
   const LabConverter to_lab;
 
   // Search at a bounded width, on a lightly blurred image.
@@ -371,50 +423,7 @@ Skyline ExtractSkyline(const cv::Mat& image, const SkylineOptions& options) {
     if (yb <= 1.0 || yb >= image.rows - 1.0) continue;  // no boundary inside the image
     fits[x] = RefineColumn(bgr, to_lab, x, yb, window);
   }
-  // Occluders: trees and poles stand in front of the horizon as narrow
-  // spikes with near-vertical flanks (terrain flanks are far less steep in
-  // the image), or as dark green or black silhouettes, much darker than the
-  // image's typical horizon terrain.
-  std::vector<uint8_t> occluded(image.cols, 0);
-  {
-    const int w = image.cols;
-    const double steep = 3.5;  // px of rise per column
-    const int max_width = std::max(8, w / 8);
-    auto y_at = [&](int x) { return fits[std::clamp(x, 0, w - 1)].y; };
-    std::vector<int> flank(w, 0);  // -1 rising to the right, +1 falling
-    // A flank: steep here and rising a good height over 6 columns.
-    const double min_rise = std::max(15.0, 0.03 * image.rows);
-    for (int x = 0; x < w; ++x) {
-      const double d = 0.5 * (y_at(x + 1) - y_at(x - 1)), rise = y_at(x + 3) - y_at(x - 3);
-      if (std::isfinite(d) && std::abs(d) > steep && std::abs(rise) > min_rise && d * rise > 0)
-        flank[x] = d < 0 ? -1 : 1;
-    }
-    for (int x = 0; x < w; ++x) {
-      if (flank[x] != -1) continue;
-      // A rising flank, then a falling one within max_width (or the image edge).
-      int end = -1;
-      for (int k = x + 1; k < std::min(w, x + max_width); ++k)
-        if (flank[k] == 1) end = k;
-      if (end < 0 && w - x < max_width) end = w - 1;
-      if (end >= 0) std::fill(occluded.begin() + x, occluded.begin() + end + 1, uint8_t{1});
-    }
-    for (int x = w - 1; x >= 0; --x)  // a falling flank near the left edge
-      if (flank[x] == 1 && x < max_width && std::none_of(flank.begin(), flank.begin() + x, [](int f) { return f == -1; }))
-        std::fill(occluded.begin(), occluded.begin() + x + 1, uint8_t{1});
-    std::vector<double> lights;
-    for (const ColumnFit& f : fits)
-      if (std::isfinite(f.y)) lights.push_back(f.ground_l);
-    double typical_l = 0;
-    if (!lights.empty()) {
-      std::nth_element(lights.begin(), lights.begin() + lights.size() / 2, lights.end());
-      typical_l = lights[lights.size() / 2];
-    }
-    for (int x = 0; x < w; ++x) {
-      const ColumnFit& f = fits[x];
-      const bool dark = f.ground_l < 12.0 || (f.ground_l < 35.0 && f.ground_l < 0.6 * typical_l && f.ground_green > 4.0);
-      if (std::isfinite(f.y) && dark) occluded[x] = 1;
-    }
-  }
+  const std::vector<uint8_t> occluded = FindOccluders(fits, image.rows);
   const int grow = std::max(3, image.cols / 128);  // the occluder's edges and the DP's way round it
   std::vector<uint8_t> grown(occluded);
   for (int x = 0; x < image.cols; ++x)
@@ -430,10 +439,7 @@ Skyline ExtractSkyline(const cv::Mat& image, const SkylineOptions& options) {
 }
 
 cv::Mat DrawSkylineDebug(const cv::Mat& image, const Skyline& skyline) {
-  cv::Mat canvas;
-  if (image.channels() == 1) cv::cvtColor(image, canvas, cv::COLOR_GRAY2BGR);
-  else if (image.channels() == 4) cv::cvtColor(image, canvas, cv::COLOR_BGRA2BGR);
-  else canvas = image.clone();
+  cv::Mat canvas = image.channels() == 3 ? image.clone() : ToBgr(image);
   const int thick = std::max(1, image.cols / 600);
   for (int x = 0; x < skyline.width; ++x) {
     if (!std::isfinite(skyline.y[x])) {
