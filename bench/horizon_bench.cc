@@ -81,7 +81,8 @@ BENCHMARK(BM_LoadDem_Tile1arcsec)->Unit(benchmark::kMillisecond)->UseRealTime();
 }  // namespace horizonreg
 
 int main(int argc, char** argv) {
-  std::printf("Paper (Behringer 1999, 200 MHz Pentium Pro): full 1201x1201 tile at 0.25 deg 40 s; +-15 km window 4 s.\n");
+  std::printf(
+      "Paper (Behringer 1999, 200 MHz Pentium Pro): full 1201x1201 tile at 0.25 deg 40 s; +-15 km window 4 s.\n");
   if (!horizonreg::testing::SharedDir()) std::printf("SKIPPED: ../shared is absent; the benchmarks need its DEMs.\n");
   benchmark::Initialize(&argc, argv);
   benchmark::RunSpecifiedBenchmarks();

@@ -79,7 +79,7 @@ TEST(SceneHorizon, ProjectedDemHorizonMatchesRenderedSkylines) {
   std::printf("[ scene ] all %d scenes: median %.2f px, p95 %.2f px\n", scenes, all[all.size() / 2],
               all[all.size() * 95 / 100]);
   EXPECT_GE(scenes, 20);
-  EXPECT_LE(all[all.size() / 2], 0.6);        // measured 0.38 px
+  EXPECT_LE(all[all.size() / 2], 0.6);         // measured 0.38 px
   EXPECT_LE(all[all.size() * 95 / 100], 4.0);  // measured 3.2 px
 }
 

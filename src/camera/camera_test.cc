@@ -1,9 +1,9 @@
 // SPDX-License-Identifier: MIT
 #include "camera/camera.h"
 
-#include <Eigen/LU>
 #include <gtest/gtest.h>
 
+#include <Eigen/LU>
 #include <random>
 
 #include "util/angles.h"

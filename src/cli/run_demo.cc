@@ -87,8 +87,7 @@ int RunDemo(const DemoArgs& a) {
               profile.azimuth_step_deg, valid, ridge_points);
   std::printf("  highest       azimuth %.2f deg, elevation %.3f deg, %.1f km away\n", profile.AzimuthDeg(hi),
               profile.elevation_deg[hi], profile.distance_m[hi] / 1000.0);
-  std::printf("  timing        load %.1f ms, horizon %.1f ms, ridges %.1f ms\n", ms(t1 - t0), ms(t2 - t1),
-              ms(t3 - t2));
+  std::printf("  timing        load %.1f ms, horizon %.1f ms, ridges %.1f ms\n", ms(t1 - t0), ms(t2 - t1), ms(t3 - t2));
   std::printf("  wrote         %s\n                %s\n", png_path.c_str(), json_path.c_str());
   return 0;
 }

@@ -29,7 +29,8 @@ void AddHorizonCommand(CLI::App& app, HorizonArgs& a) {
   c->add_option("--refraction", a.options.refraction, "Refraction coefficient k (0 = pure geometry)")
       ->capture_default_str();
   c->add_option("--threads", a.options.num_threads, "Threads")->capture_default_str();
-  c->add_option("--format", a.format, "Output format")->check(CLI::IsMember({"json", "csv", "geojson"}))
+  c->add_option("--format", a.format, "Output format")
+      ->check(CLI::IsMember({"json", "csv", "geojson"}))
       ->capture_default_str();
   c->add_option("-o,--output", a.output, "Output file ('-' = stdout)")->capture_default_str();
   c->add_option("--plot", a.plot, "Also draw a panorama chart to this PNG");
@@ -78,8 +79,8 @@ std::string HorizonToCsv(const HorizonProfile& p) {
   s << "azimuth_deg,elevation_deg,distance_m,lat,lon,height_m\n";
   auto v = [](double x) { return std::isfinite(x) ? std::to_string(x) : std::string(); };
   for (int i = 0; i < p.size(); ++i) {
-    s << p.AzimuthDeg(i) << "," << v(p.elevation_deg[i]) << "," << v(p.distance_m[i]) << "," << v(p.lat_deg[i])
-      << "," << v(p.lon_deg[i]) << "," << v(p.height_m[i]) << "\n";
+    s << p.AzimuthDeg(i) << "," << v(p.elevation_deg[i]) << "," << v(p.distance_m[i]) << "," << v(p.lat_deg[i]) << ","
+      << v(p.lon_deg[i]) << "," << v(p.height_m[i]) << "\n";
   }
   return s.str();
 }
@@ -102,19 +103,18 @@ std::string HorizonToGeoJson(const HorizonProfile& p) {
   if (cur.size() > 1) lines.push_back(cur);
   json geometry = lines.size() == 1 ? json{{"type", "LineString"}, {"coordinates", lines[0]}}
                                     : json{{"type", "MultiLineString"}, {"coordinates", lines}};
-  json fc = {{"type", "FeatureCollection"},
-             {"features",
-              {{{"type", "Feature"},
-                {"properties",
-                 {{"name", "horizon"}, {"step_deg", p.azimuth_step_deg}, {"refraction", p.refraction}}},
-                {"geometry", geometry}},
-               {{"type", "Feature"},
-                {"properties", {{"name", "observer"}, {"eye_height_m", Rounded(p.observer.height_m, 2)}}},
-                {"geometry",
-                 {{"type", "Point"},
-                  {"coordinates",
-                   {Rounded(p.observer.lon_deg, 8), Rounded(p.observer.lat_deg, 8),
-                    Rounded(p.observer.height_m, 2)}}}}}}}};
+  json fc = {
+      {"type", "FeatureCollection"},
+      {"features",
+       {{{"type", "Feature"},
+         {"properties", {{"name", "horizon"}, {"step_deg", p.azimuth_step_deg}, {"refraction", p.refraction}}},
+         {"geometry", geometry}},
+        {{"type", "Feature"},
+         {"properties", {{"name", "observer"}, {"eye_height_m", Rounded(p.observer.height_m, 2)}}},
+         {"geometry",
+          {{"type", "Point"},
+           {"coordinates",
+            {Rounded(p.observer.lon_deg, 8), Rounded(p.observer.lat_deg, 8), Rounded(p.observer.height_m, 2)}}}}}}}};
   return fc.dump() + "\n";
 }
 
@@ -138,9 +138,12 @@ int RunHorizon(const HorizonArgs& a) {
   std::vector<std::vector<Ridge>> ridges;
   if (a.ridges) ridges = ComputeRidges(window, observer, a.options, RidgeOptions{});
   std::string text;
-  if (a.format == "json") text = HorizonToJson(profile, ridges);
-  else if (a.format == "csv") text = HorizonToCsv(profile);
-  else text = HorizonToGeoJson(profile);
+  if (a.format == "json")
+    text = HorizonToJson(profile, ridges);
+  else if (a.format == "csv")
+    text = HorizonToCsv(profile);
+  else
+    text = HorizonToGeoJson(profile);
   if (!a.plot.empty()) {
     HorizonPlotOptions po;
     std::ostringstream t;

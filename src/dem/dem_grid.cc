@@ -52,8 +52,8 @@ std::optional<double> DemGrid::HeightAt(double query_lat_deg, double query_lon_d
   const int c = std::min(static_cast<int>(px->first), width - 2);
   const int r = std::min(static_cast<int>(px->second), height - 2);
   const double fx = px->first - c, fy = px->second - r;
-  const double h = (1 - fy) * ((1 - fx) * At(c, r) + fx * At(c + 1, r)) +
-                   fy * ((1 - fx) * At(c, r + 1) + fx * At(c + 1, r + 1));
+  const double h =
+      (1 - fy) * ((1 - fx) * At(c, r) + fx * At(c + 1, r)) + fy * ((1 - fx) * At(c, r + 1) + fx * At(c + 1, r + 1));
   if (!std::isfinite(h)) return std::nullopt;
   return h;
 }

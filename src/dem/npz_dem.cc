@@ -3,9 +3,9 @@
 
 #include <cpl_vsi.h>
 
+#include <cctype>
 #include <cstdint>
 #include <cstring>
-#include <cctype>
 
 #include "util/errors.h"
 
@@ -88,16 +88,25 @@ NpyArray ParseNpy(const std::string& path, const std::string& member, const std:
     }
   }
   size_t item;
-  if (a.dtype == "<i2") item = 2;
-  else if (a.dtype == "<i4" || a.dtype == "<f4") item = 4;
-  else if (a.dtype == "<f8" || a.dtype == "<i8") item = 8;
-  else throw bad("unsupported dtype " + a.dtype);
+  if (a.dtype == "<i2")
+    item = 2;
+  else if (a.dtype == "<i4" || a.dtype == "<f4")
+    item = 4;
+  else if (a.dtype == "<f8" || a.dtype == "<i8")
+    item = 8;
+  else
+    throw bad("unsupported dtype " + a.dtype);
   if (raw.size() < offset + count * item) throw bad("truncated data");
-  if (a.dtype == "<i2") Convert<int16_t>(raw, offset, count, a.values);
-  else if (a.dtype == "<i4") Convert<int32_t>(raw, offset, count, a.values);
-  else if (a.dtype == "<f4") Convert<float>(raw, offset, count, a.values);
-  else if (a.dtype == "<i8") Convert<int64_t>(raw, offset, count, a.values);
-  else Convert<double>(raw, offset, count, a.values);
+  if (a.dtype == "<i2")
+    Convert<int16_t>(raw, offset, count, a.values);
+  else if (a.dtype == "<i4")
+    Convert<int32_t>(raw, offset, count, a.values);
+  else if (a.dtype == "<f4")
+    Convert<float>(raw, offset, count, a.values);
+  else if (a.dtype == "<i8")
+    Convert<int64_t>(raw, offset, count, a.values);
+  else
+    Convert<double>(raw, offset, count, a.values);
   return a;
 }
 

@@ -47,9 +47,7 @@ struct SrsDeleter {
   void operator()(void* p) const { OSRDestroySpatialReference(static_cast<OGRSpatialReferenceH>(p)); }
 };
 struct CtDeleter {
-  void operator()(void* p) const {
-    OCTDestroyCoordinateTransformation(static_cast<OGRCoordinateTransformationH>(p));
-  }
+  void operator()(void* p) const { OCTDestroyCoordinateTransformation(static_cast<OGRCoordinateTransformationH>(p)); }
 };
 struct DatasetDeleter {
   void operator()(void* p) const { GDALClose(static_cast<GDALDatasetH>(p)); }
@@ -59,8 +57,8 @@ struct Source {
   std::string path;
   std::unique_ptr<void, DatasetDeleter> dataset;
   int width = 0, height = 0;
-  double gt[6] = {0, 1, 0, 0, 0, 1};  // GDAL geotransform (pixel corner based)
-  bool separable = false;             // WGS84 geographic, north-up
+  double gt[6] = {0, 1, 0, 0, 0, 1};                      // GDAL geotransform (pixel corner based)
+  bool separable = false;                                 // WGS84 geographic, north-up
   std::unique_ptr<void, CtDeleter> to_wgs84, from_wgs84;  // lon/lat order
   std::optional<double> nodata;
 
@@ -86,8 +84,8 @@ GDALDatasetH DatasetFromNpz(const std::string& path) {
   GDALSetGeoTransform(ds, gt);
   auto wgs84 = MakeWgs84();
   GDALSetSpatialRef(ds, static_cast<OGRSpatialReferenceH>(wgs84.get()));
-  if (GDALRasterIO(GDALGetRasterBand(ds, 1), GF_Write, 0, 0, npz.width, npz.height, npz.elevation_m.data(),
-                   npz.width, npz.height, GDT_Float64, 0, 0) != CE_None) {
+  if (GDALRasterIO(GDALGetRasterBand(ds, 1), GF_Write, 0, 0, npz.width, npz.height, npz.elevation_m.data(), npz.width,
+                   npz.height, GDT_Float64, 0, 0) != CE_None) {
     GDALClose(ds);
     throw IoError("dem: cannot store " + Quote(path) + " in memory: " + LastGdalMessage());
   }
@@ -161,8 +159,7 @@ double LonNearTile(const Source& s, double lon_deg) {
 std::optional<std::pair<double, double>> PixelOfLatLon(const Source& s, double lat_deg, double lon_deg) {
   if (s.separable) return std::make_pair(s.ColOfX(LonNearTile(s, lon_deg)), s.RowOfY(lat_deg));
   double x = lon_deg, y = lat_deg, z = 0;
-  if (!OCTTransform(static_cast<OGRCoordinateTransformationH>(s.from_wgs84.get()), 1, &x, &y, &z))
-    return std::nullopt;
+  if (!OCTTransform(static_cast<OGRCoordinateTransformationH>(s.from_wgs84.get()), 1, &x, &y, &z)) return std::nullopt;
   double col, row;
   PixelOfGeo(s, x, y, col, row);
   return std::make_pair(col, row);
@@ -208,9 +205,8 @@ PixelWindow WindowOf(const Source& s, const GeodeticPoint& c, double radius_m) {
 // and implausible values as kVoidSentinel.
 void ReadPosts(const Source& s, const PixelWindow& w, float* dst, size_t dst_stride) {
   CPLErrorReset();
-  if (GDALRasterIO(GDALGetRasterBand(static_cast<GDALDatasetH>(s.dataset.get()), 1), GF_Read, w.c0, w.r0, w.w(),
-                   w.h(), dst, w.w(), w.h(), GDT_Float32, 0, static_cast<GSpacing>(dst_stride * sizeof(float))) !=
-      CE_None)
+  if (GDALRasterIO(GDALGetRasterBand(static_cast<GDALDatasetH>(s.dataset.get()), 1), GF_Read, w.c0, w.r0, w.w(), w.h(),
+                   dst, w.w(), w.h(), GDT_Float32, 0, static_cast<GSpacing>(dst_stride * sizeof(float))) != CE_None)
     throw IoError("dem: cannot read " + Quote(s.path) + ": " + LastGdalMessage());
   const float nd = s.nodata ? static_cast<float>(*s.nodata) : 0.0f;
   const bool has_nd = s.nodata.has_value();
@@ -228,8 +224,7 @@ void ReadPosts(const Source& s, const PixelWindow& w, float* dst, size_t dst_str
 // spans more than 2 * kMaxVoidFillPx posts is a missing area, not a hole: it
 // stays NaN, and so do holes next to it (their interpolation would lean on
 // nothing), and everything not covered.
-void FillVoids(std::vector<float>& buf, const std::vector<uint8_t>& covered, int w, int h,
-               const std::string& what) {
+void FillVoids(std::vector<float>& buf, const std::vector<uint8_t>& covered, int w, int h, const std::string& what) {
   struct Box {
     int c0, c1, r0, r1;
   };

@@ -35,8 +35,7 @@ void WriteTiff(const fs::path& path, int w, int h, double west, double north, do
   OSRDestroySpatialReference(srs);
   GDALRasterBandH b = GDALGetRasterBand(ds, 1);
   if (nodata) GDALSetRasterNoDataValue(b, *nodata);
-  EXPECT_EQ(GDALRasterIO(b, GF_Write, 0, 0, w, h, const_cast<float*>(values.data()), w, h, GDT_Float32, 0, 0),
-            CE_None);
+  EXPECT_EQ(GDALRasterIO(b, GF_Write, 0, 0, w, h, const_cast<float*>(values.data()), w, h, GDT_Float32, 0, 0), CE_None);
   GDALClose(ds);
 }
 

@@ -53,18 +53,12 @@ class LocalFrame {
   // Rotation taking ECEF difference vectors into ENU (rows: east, north, up).
   const Eigen::Matrix3d& enu_from_ecef() const { return enu_from_ecef_; }
 
-  Eigen::Vector3d EnuFromEcef(const Eigen::Vector3d& ecef_m) const {
-    return enu_from_ecef_ * (ecef_m - origin_ecef_);
-  }
-  Eigen::Vector3d EnuFromGeodetic(const GeodeticPoint& p) const {
-    return EnuFromEcef(EcefFromGeodetic(p));
-  }
+  Eigen::Vector3d EnuFromEcef(const Eigen::Vector3d& ecef_m) const { return enu_from_ecef_ * (ecef_m - origin_ecef_); }
+  Eigen::Vector3d EnuFromGeodetic(const GeodeticPoint& p) const { return EnuFromEcef(EcefFromGeodetic(p)); }
   Eigen::Vector3d EcefFromEnu(const Eigen::Vector3d& enu_m) const {
     return origin_ecef_ + enu_from_ecef_.transpose() * enu_m;
   }
-  GeodeticPoint GeodeticFromEnu(const Eigen::Vector3d& enu_m) const {
-    return GeodeticFromEcef(EcefFromEnu(enu_m));
-  }
+  GeodeticPoint GeodeticFromEnu(const Eigen::Vector3d& enu_m) const { return GeodeticFromEcef(EcefFromEnu(enu_m)); }
 
  private:
   GeodeticPoint origin_;

@@ -1,10 +1,10 @@
 // SPDX-License-Identifier: MIT
 #include "geo/geodesy.h"
 
-#include <GeographicLib/Geocentric.hpp>
-#include <GeographicLib/LocalCartesian.hpp>
 #include <gtest/gtest.h>
 
+#include <GeographicLib/Geocentric.hpp>
+#include <GeographicLib/LocalCartesian.hpp>
 #include <random>
 
 #include "util/errors.h"

@@ -92,7 +92,8 @@ class HorizonAccumulator {
       const double slack = std::min({a.d, b.d, c.d, d.d}) - w_max / t;  // must exceed the diagonal
       if (slack > 0.0 && diag2 <= slack * slack) return;
     }
-    internal::CellRays(*setup_, a, b, c, d, [&](int ray, int before, int after) { Chord(a, b, c, d, ray, before, after); });
+    internal::CellRays(*setup_, a, b, c, d,
+                       [&](int ray, int before, int after) { Chord(a, b, c, d, ray, before, after); });
   }
 
   void MergeFrom(const HorizonAccumulator& other) {
@@ -115,8 +116,8 @@ class HorizonAccumulator {
     return diff == 1 || diff == setup_->num_sectors - 1;
   }
 
-  void Chord(const SweepPoint& a, const SweepPoint& b, const SweepPoint& c, const SweepPoint& d, int ray,
-             int before, int after) {
+  void Chord(const SweepPoint& a, const SweepPoint& b, const SweepPoint& c, const SweepPoint& d, int ray, int before,
+             int after) {
     const double ue = setup_->ray_sin[ray], un = setup_->ray_cos[ray];
     // Entry and exit of the ray through the cell's four edges, in cell
     // coordinates (fx east along a-b, fy south along a-c).
@@ -206,8 +207,7 @@ int HorizonOptions::NumBins() const { return static_cast<int>(std::lround(360.0 
 void RidgeOptions::Check() const {
   if (!(min_depth_ratio >= 0.0)) ThrowField("RidgeOptions::min_depth_ratio", min_depth_ratio, ">= 0");
   if (!(min_depth_spacings >= 0.0)) ThrowField("RidgeOptions::min_depth_spacings", min_depth_spacings, ">= 0");
-  if (!(min_distance_spacings >= 0.0))
-    ThrowField("RidgeOptions::min_distance_spacings", min_distance_spacings, ">= 0");
+  if (!(min_distance_spacings >= 0.0)) ThrowField("RidgeOptions::min_distance_spacings", min_distance_spacings, ">= 0");
   if (!(min_separation_deg >= 0.0)) ThrowField("RidgeOptions::min_separation_deg", min_separation_deg, ">= 0");
 }
 
@@ -220,10 +220,9 @@ double HorizonProfile::ElevationAtDeg(double azimuth_deg) const {
   return (1 - f) * elevation_deg[i0] + f * elevation_deg[i1];
 }
 
-GeodeticPoint ResolveObserver(const TerrainWindow& terrain, double lat_deg, double lon_deg,
-                              std::optional<double> agl_m, std::optional<double> alt_m) {
-  if (!std::isfinite(lat_deg) || lat_deg < -90.0 || lat_deg > 90.0)
-    ThrowField("latitude", lat_deg, "-90 <= lat <= 90");
+GeodeticPoint ResolveObserver(const TerrainWindow& terrain, double lat_deg, double lon_deg, std::optional<double> agl_m,
+                              std::optional<double> alt_m) {
+  if (!std::isfinite(lat_deg) || lat_deg < -90.0 || lat_deg > 90.0) ThrowField("latitude", lat_deg, "-90 <= lat <= 90");
   if (!std::isfinite(lon_deg) || lon_deg < -180.0 || lon_deg > 360.0)
     ThrowField("longitude", lon_deg, "-180 <= lon <= 360");
   if (agl_m && alt_m) throw InvalidArgument("give either a height above ground (agl) or an altitude, not both");

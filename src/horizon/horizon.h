@@ -12,12 +12,12 @@
 namespace horizonreg {
 
 struct HorizonOptions {
-  double azimuth_step_deg = 0.25;      // Bin width and spacing; 360 / step must be a whole number.
-  double max_distance_m = 100'000.0;   // Terrain farther than this (ground distance) is ignored.
-  double min_distance_m = 0.5;         // Posts nearer than this (the observer's own post) are ignored.
+  double azimuth_step_deg = 0.25;          // Bin width and spacing; 360 / step must be a whole number.
+  double max_distance_m = 100'000.0;       // Terrain farther than this (ground distance) is ignored.
+  double min_distance_m = 0.5;             // Posts nearer than this (the observer's own post) are ignored.
   double refraction = kDefaultRefraction;  // k of the lift k d^2 / (2 R); 0 = pure geometry, in [-1, 1].
-  int num_threads = 2;                 // Threads for the post/edge pass, >= 1.
-  void Check() const;                  // Throws InvalidArgument naming the field.
+  int num_threads = 2;                     // Threads for the post/edge pass, >= 1.
+  void Check() const;                      // Throws InvalidArgument naming the field.
   int NumBins() const;
 };
 
@@ -26,13 +26,13 @@ struct HorizonOptions {
 // [(i - 0.5) step, (i + 0.5) step) and where that terrain is. NaN where the
 // segment holds no terrain (beyond the DEM or max_distance).
 struct HorizonProfile {
-  GeodeticPoint observer;  // eye position; height_m above the ellipsoid (conventions.h)
+  GeodeticPoint observer;        // eye position; height_m above the ellipsoid (conventions.h)
   double ground_height_m = 0.0;  // terrain height under the observer
   double azimuth_step_deg = 0.25;
   double refraction = kDefaultRefraction;
-  std::vector<double> elevation_deg;  // elevation angle, degrees, up positive (may be negative)
-  std::vector<double> distance_m;     // horizontal distance in the observer's ENU frame (= ground
-                                      // distance within 0.1%)
+  std::vector<double> elevation_deg;               // elevation angle, degrees, up positive (may be negative)
+  std::vector<double> distance_m;                  // horizontal distance in the observer's ENU frame (= ground
+                                                   // distance within 0.1%)
   std::vector<double> lat_deg, lon_deg, height_m;  // the horizon point, height as in the DEM
 
   int size() const { return static_cast<int>(elevation_deg.size()); }
@@ -44,8 +44,8 @@ struct HorizonProfile {
 // Eye position for an observer at (lat, lon): terrain height + agl_m, or
 // alt_m (absolute) when given. Throws InvalidArgument when lat/lon are out of
 // range or not finite, or no DEM grid has data there.
-GeodeticPoint ResolveObserver(const TerrainWindow& terrain, double lat_deg, double lon_deg,
-                              std::optional<double> agl_m, std::optional<double> alt_m);
+GeodeticPoint ResolveObserver(const TerrainWindow& terrain, double lat_deg, double lon_deg, std::optional<double> agl_m,
+                              std::optional<double> alt_m);
 
 // Computes the horizon of the bilinear terrain surface (dem/dem_grid.h).
 //
@@ -75,8 +75,8 @@ struct Ridge {
 };
 
 struct RidgeOptions {
-  double min_depth_ratio = 0.10;    // Terrain behind a ridge must be hidden over >= this fraction of its distance.
-  double min_depth_spacings = 3.0;  // ... and over >= this many DEM post spacings.
+  double min_depth_ratio = 0.10;       // Terrain behind a ridge must be hidden over >= this fraction of its distance.
+  double min_depth_spacings = 3.0;     // ... and over >= this many DEM post spacings.
   double min_distance_spacings = 4.0;  // Ridges nearer than this many post spacings are ignored.
   double min_separation_deg = 0.02;    // A ridge must stand this far below the next silhouette above it.
   void Check() const;

@@ -1,9 +1,9 @@
 // SPDX-License-Identifier: MIT
 #include "horizon/horizon.h"
 
-#include <GeographicLib/LocalCartesian.hpp>
 #include <gtest/gtest.h>
 
+#include <GeographicLib/LocalCartesian.hpp>
 #include <algorithm>
 #include <numeric>
 #include <thread>
@@ -86,9 +86,9 @@ TEST(ComputeHorizon, SingleConePeakAppearsAtItsAzimuth) {
     const GeodeticPoint obs = ResolveObserver(w, lat0, lon0, 1.7, std::nullopt);
     HorizonProfile p = ComputeHorizon(w, obs, o);
     ASSERT_EQ(p.size(), 1440);
-    const int top = static_cast<int>(std::max_element(p.elevation_deg.begin(), p.elevation_deg.end(),
-                                                      [](double a, double b) { return !(a >= b); }) -
-                                     p.elevation_deg.begin());
+    const int top = static_cast<int>(
+        std::max_element(p.elevation_deg.begin(), p.elevation_deg.end(), [](double a, double b) { return !(a >= b); }) -
+        p.elevation_deg.begin());
     GeographicLib::LocalCartesian lc(lat0, lon0, 0);
     double x, y, z;
     lc.Forward(peak_lat, peak_lon, 0, x, y, z);
@@ -125,7 +125,8 @@ TEST(ComputeHorizon, FlatEarthGivesTheGeometricDipAndHorizonDistance) {
 TEST(ComputeHorizon, NoSegmentIsEmptyNearTheObserverOnASlope) {
   // Observer in the middle of a 5-post wide tilted plane (slope 10% to the
   // east): near cells span many segments and must fill all of them.
-  DemGrid g = SynthesizeDem(45.002, 6.998, 0.001, 5, 5, [](double, double lon) { return 100.0 + (lon - 7.0) * 7863.0; });
+  DemGrid g =
+      SynthesizeDem(45.002, 6.998, 0.001, 5, 5, [](double, double lon) { return 100.0 + (lon - 7.0) * 7863.0; });
   TerrainWindow w = WindowOf(std::move(g));
   const GeodeticPoint obs = ResolveObserver(w, 45.0003, 7.0004, 1.7, std::nullopt);
   const HorizonProfile p = ComputeHorizon(w, obs, HorizonOptions{});
@@ -150,9 +151,8 @@ TEST(ComputeRidges, FindsANearRidgeInFrontOfAHigherFarOne) {
   // Looking north: a 400 m ridge at 5 km, a 4500 m massif at 40 km.
   auto near_ridge = ConeHeight(45.045, 7.0, 0.0, 400.0, 1500.0);
   auto far_massif = ConeHeight(45.36, 7.0, 0.0, 4500.0, 8000.0);
-  DemGrid g = SynthesizeDem(45.5, 6.8, 0.001, 401, 521, [&](double la, double lo) {
-    return std::max(near_ridge(la, lo), far_massif(la, lo));
-  });
+  DemGrid g = SynthesizeDem(45.5, 6.8, 0.001, 401, 521,
+                            [&](double la, double lo) { return std::max(near_ridge(la, lo), far_massif(la, lo)); });
   TerrainWindow w = WindowOf(std::move(g));
   const GeodeticPoint obs{45.0, 7.0, 1.7};
   const HorizonProfile p = ComputeHorizon(w, obs, HorizonOptions{});
@@ -163,7 +163,7 @@ TEST(ComputeRidges, FindsANearRidgeInFrontOfAHigherFarOne) {
   EXPECT_NEAR(ridges[0][0].elevation_deg, ridge_el, 0.05);
   EXPECT_NEAR(ridges[0][0].distance_m, 5000.0, 200.0);
   EXPECT_GT(p.elevation_deg[0], ridges[0][0].elevation_deg + 1.0);  // the massif above it
-  EXPECT_TRUE(ridges[720].empty());  // looking south over the flat plain
+  EXPECT_TRUE(ridges[720].empty());                                 // looking south over the flat plain
 }
 
 // ---- Independent reference: fine ray march over the same bilinear surface ----
@@ -241,7 +241,8 @@ class ReferenceHorizon {
       if (!px) continue;
       const auto z = g.HeightAt(lat, lon);
       if (!z) continue;
-      const int c = std::min(static_cast<int>(px->first), g.width - 2), r = std::min(static_cast<int>(px->second), g.height - 2);
+      const int c = std::min(static_cast<int>(px->first), g.width - 2),
+                r = std::min(static_cast<int>(px->second), g.height - 2);
       const auto& posts = posts_[gi];
       for (int dr = 0; dr < 2; ++dr)
         for (int dc = 0; dc < 2; ++dc)
@@ -309,7 +310,8 @@ void CompareWithReference(const Viewpoint& v, const std::filesystem::path& share
   if (std::getenv("HR_DEBUG_REF")) {
     for (int i = 0; i < p.size(); ++i)
       if (std::abs(p.elevation_deg[i] - ref[i]) > 0.03)
-        std::printf("  bin %d az %.2f ours %.4f ref %.4f dist %.0f\n", i, p.AzimuthDeg(i), p.elevation_deg[i], ref[i], p.distance_m[i]);
+        std::printf("  bin %d az %.2f ours %.4f ref %.4f dist %.0f\n", i, p.AzimuthDeg(i), p.elevation_deg[i], ref[i],
+                    p.distance_m[i]);
   }
   for (int i = 0; i < p.size(); ++i) {
     ASSERT_TRUE(std::isfinite(p.elevation_deg[i])) << v.name << " bin " << i;
@@ -351,7 +353,8 @@ TEST(ComputeHorizon, AgreesWithAFineRayMarchAcrossATileEdge) {
 
 TEST(ComputeHorizon, RidgeOnTheNextTileIsNotLost) {
   HR_REQUIRE_SHARED(shared);
-  const std::string south = (shared / "dem" / "N41E001.hgt").string(), north = (shared / "dem" / "N42E001.hgt").string();
+  const std::string south = (shared / "dem" / "N41E001.hgt").string(),
+                    north = (shared / "dem" / "N42E001.hgt").string();
   const double lat = 41.98, lon = 1.45;  // just south of the tile edge
   HorizonOptions o;
   const TerrainWindow one = Terrain({south}).ReadWindow({lat, lon, 0}, o.max_distance_m);

@@ -69,7 +69,7 @@ std::vector<std::vector<Ridge>> ComputeRidges(const TerrainWindow& terrain, cons
       // How far behind k the terrain stays below it.
       size_t j = k + 1;
       while (j < ray.size() && ray[j].tan_el <= ray[k].tan_el) ++j;
-      if (j == k + 1) continue;  // the terrain keeps rising: not a silhouette
+      if (j == k + 1) continue;    // the terrain keeps rising: not a silhouette
       if (j == ray.size()) break;  // nothing behind rises above it: the outer horizon
       const double depth = ray[j].d - ray[k].d;
       if (depth >= ridge_options.min_depth_ratio * ray[k].d && depth >= ridge_options.min_depth_spacings * spacing)

@@ -14,7 +14,8 @@ inline double Atan2NoBranch(double y, double x) {
   const double reduced = (a0 - 1.0) / (a0 + 1.0);  // computed always: no branch
   const double a = big ? reduced : a0;
   const double z2 = a * a;
-  double r = a * (1.0 + z2 * (-1.0 / 3 + z2 * (1.0 / 5 + z2 * (-1.0 / 7 + z2 * (1.0 / 9 + z2 * (-1.0 / 11 + z2 / 13))))));
+  double r =
+      a * (1.0 + z2 * (-1.0 / 3 + z2 * (1.0 / 5 + z2 * (-1.0 / 7 + z2 * (1.0 / 9 + z2 * (-1.0 / 11 + z2 / 13))))));
   r += big ? 0.78539816339744831 : 0.0;
   r = ay > ax ? 1.5707963267948966 - r : r;
   r = x < 0.0 ? 3.141592653589793 - r : r;

@@ -26,7 +26,8 @@ inline double FastAtan2(double y, double x) {
     offset = 0.78539816339744831;
   }
   const double z2 = a * a;
-  double r = a * (1.0 + z2 * (-1.0 / 3 + z2 * (1.0 / 5 + z2 * (-1.0 / 7 + z2 * (1.0 / 9 + z2 * (-1.0 / 11 + z2 / 13))))));
+  double r =
+      a * (1.0 + z2 * (-1.0 / 3 + z2 * (1.0 / 5 + z2 * (-1.0 / 7 + z2 * (1.0 / 9 + z2 * (-1.0 / 11 + z2 / 13))))));
   r += offset;
   if (ay > ax) r = 1.5707963267948966 - r;
   if (x < 0.0) r = 3.141592653589793 - r;
@@ -45,9 +46,9 @@ struct SweepPoint {
 };
 
 struct SweepSetup {
-  int num_sectors = 0;        // number of rays = sectors
-  double step_rad = 0;        // angular spacing
-  double sector_offset = 0;   // sector s covers azimuths [(s - o) step, (s + 1 - o) step)
+  int num_sectors = 0;       // number of rays = sectors
+  double step_rad = 0;       // angular spacing
+  double sector_offset = 0;  // sector s covers azimuths [(s - o) step, (s + 1 - o) step)
   double min_distance_m = 0;
   double max_distance_m = 0;
   double refraction = 0;
@@ -87,9 +88,9 @@ inline SweepPoint Lerp(const SweepPoint& p, const SweepPoint& q, double t) {
 
 // One row of posts to place in the observer's frame (see ComputeRow).
 struct RowInput {
-  double obs_sin_lat, obs_cos_lat, obs_x, obs_z;  // observer, in the frame rotated to its meridian
+  double obs_sin_lat, obs_cos_lat, obs_x, obs_z;       // observer, in the frame rotated to its meridian
   double row_sin_lat = 0, row_cos_lat = 0, row_n = 0;  // separable grids: the row's latitude
-  const double* post_sin_lat = nullptr;  // non-separable grids: per post (then row_* unused)
+  const double* post_sin_lat = nullptr;                // non-separable grids: per post (then row_* unused)
   const double* post_cos_lat = nullptr;
   const double* col_sin_dlon = nullptr;  // sin / cos of (post longitude - observer longitude)
   const double* col_cos_dlon = nullptr;
@@ -102,8 +103,18 @@ struct RowInput {
 // Structure-of-arrays results of ComputeRow, one entry per post of the row.
 struct RowScratch {
   explicit RowScratch(int size)
-      : e(size), n(size), u(size), w(size), d(size), tan_el(size), h(size), sin_lat(size), cos_lat(size),
-        sin_dlon(size), cos_dlon(size), sector(size) {}
+      : e(size),
+        n(size),
+        u(size),
+        w(size),
+        d(size),
+        tan_el(size),
+        h(size),
+        sin_lat(size),
+        cos_lat(size),
+        sin_dlon(size),
+        cos_dlon(size),
+        sector(size) {}
   std::vector<double> e, n, u, w, d, tan_el, h, sin_lat, cos_lat, sin_dlon, cos_dlon;
   std::vector<int> sector;  // -1: not valid
 };

@@ -78,11 +78,12 @@ cv::Mat PlotHorizon(const HorizonProfile& profile, const std::vector<std::vector
     const double az1 = az0 + profile.azimuth_step_deg;
     const cv::Scalar col = DistanceColour(profile.distance_m[i], dmax);
     for (double shift : {0.0, 360.0, -360.0}) {
-      const int x0 = static_cast<int>(std::floor(x_of(az0 + shift))), x1 = static_cast<int>(std::ceil(x_of(az1 + shift)));
+      const int x0 = static_cast<int>(std::floor(x_of(az0 + shift))),
+                x1 = static_cast<int>(std::ceil(x_of(az1 + shift)));
       if (x1 < left || x0 > left + pw) continue;
       const int y0 = static_cast<int>(std::round(y_of(profile.elevation_deg[i])));
-      cv::rectangle(img, cv::Point(std::max(x0, left), std::max(y0, top)),
-                    cv::Point(std::min(x1, left + pw), top + ph), col, cv::FILLED);
+      cv::rectangle(img, cv::Point(std::max(x0, left), std::max(y0, top)), cv::Point(std::min(x1, left + pw), top + ph),
+                    col, cv::FILLED);
     }
   }
   // Inner ridge lines.

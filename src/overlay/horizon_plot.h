@@ -15,9 +15,9 @@ class Mat;
 namespace horizonreg {
 
 struct HorizonPlotOptions {
-  int width_px = 1800;    // image width, >= 400
-  int height_px = 560;    // image height, >= 200
-  std::string title;      // drawn at the top left
+  int width_px = 1800;  // image width, >= 400
+  int height_px = 560;  // image height, >= 200
+  std::string title;    // drawn at the top left
   void Check() const;
 };
 

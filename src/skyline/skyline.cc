@@ -14,12 +14,13 @@
 namespace horizonreg {
 namespace {
 
-constexpr int kHistBins = 16;          // per CIELAB axis
-constexpr float kColourWeight = 0.25f;  // DP cost per misclassified pixel (edges weigh 1 per delta E)
+constexpr int kHistBins = 16;             // per CIELAB axis
+constexpr float kColourWeight = 0.25f;    // DP cost per misclassified pixel (edges weigh 1 per delta E)
 constexpr float kEdgeAboveWeight = 0.5f;  // DP cost per delta E of sharp steps left above the boundary
 constexpr float kEdgeNoise = 4.0f;        // delta E of a step that is still noise or a soft cloud edge
 constexpr float kEdgeCap = 12.0f;
-constexpr float kSnowEdgeBoost = 2.0f;   // extra weight of a sharp step into white left above the boundary         // delta E above which a step counts as fully an edge
+constexpr float kSnowEdgeBoost = 2.0f;  // extra weight of a sharp step into white left above the boundary         //
+                                        // delta E above which a step counts as fully an edge
 
 inline int HistIndex(const cv::Vec3f& lab) {
   const int l = std::clamp(static_cast<int>(lab[0] * (kHistBins / 100.0f)), 0, kHistBins - 1);
@@ -253,8 +254,8 @@ std::vector<int> SolveBoundary(const cv::Mat& sky_t, const cv::Mat& steps_t, con
 
 struct ColumnFit {
   double y = NAN;
-  double contrast = 0;   // delta E between the local sky and ground colours
-  double ground_l = 0;   // lightness just below the boundary
+  double contrast = 0;      // delta E between the local sky and ground colours
+  double ground_l = 0;      // lightness just below the boundary
   double ground_green = 0;  // -a* just below the boundary (positive = green)
 };
 
@@ -310,8 +311,7 @@ std::vector<uint8_t> FindOccluders(const std::vector<ColumnFit>& fits, int image
   const double min_rise = std::max(15.0, 0.03 * image_rows);
   for (int x = 0; x < w; ++x) {
     const double d = 0.5 * (y_at(x + 1) - y_at(x - 1)), rise = y_at(x + 3) - y_at(x - 3);
-    if (std::isfinite(d) && std::abs(d) > steep && std::abs(rise) > min_rise && d * rise > 0)
-      flank[x] = d < 0 ? -1 : 1;
+    if (std::isfinite(d) && std::abs(d) > steep && std::abs(rise) > min_rise && d * rise > 0) flank[x] = d < 0 ? -1 : 1;
   }
   for (int x = 0; x < w; ++x) {
     if (flank[x] != -1) continue;
@@ -344,9 +344,12 @@ std::vector<uint8_t> FindOccluders(const std::vector<ColumnFit>& fits, int image
 // The image as 8-bit BGR (grey and BGRA converted, BGR shared).
 cv::Mat ToBgr(const cv::Mat& image) {
   cv::Mat bgr;
-  if (image.channels() == 1) cv::cvtColor(image, bgr, cv::COLOR_GRAY2BGR);
-  else if (image.channels() == 4) cv::cvtColor(image, bgr, cv::COLOR_BGRA2BGR);
-  else bgr = image;
+  if (image.channels() == 1)
+    cv::cvtColor(image, bgr, cv::COLOR_GRAY2BGR);
+  else if (image.channels() == 4)
+    cv::cvtColor(image, bgr, cv::COLOR_BGRA2BGR);
+  else
+    bgr = image;
   return bgr;
 }
 
@@ -371,7 +374,8 @@ int Skyline::VisibleCount() const {
 
 Skyline ExtractSkyline(const cv::Mat& image, const SkylineOptions& options) {
   options.Check();
-  if (image.empty() || image.depth() != CV_8U || (image.channels() != 1 && image.channels() != 3 && image.channels() != 4))
+  if (image.empty() || image.depth() != CV_8U ||
+      (image.channels() != 1 && image.channels() != 3 && image.channels() != 4))
     throw InvalidArgument("skyline: the image must be a non-empty 8-bit grey, BGR or BGRA image");
   Skyline out;
   out.width = image.cols;
@@ -386,8 +390,10 @@ Skyline ExtractSkyline(const cv::Mat& image, const SkylineOptions& options) {
   // Search at a bounded width, on a lightly blurred image.
   const double scale = std::min(1.0, static_cast<double>(options.max_work_width_px) / image.cols);
   cv::Mat small;
-  if (scale < 1.0) cv::resize(bgr, small, cv::Size(), scale, scale, cv::INTER_AREA);
-  else small = bgr;
+  if (scale < 1.0)
+    cv::resize(bgr, small, cv::Size(), scale, scale, cv::INTER_AREA);
+  else
+    small = bgr;
   const cv::Mat sharp = to_lab.Convert(small);
   cv::Mat work, work_t, sharp_t;
   cv::GaussianBlur(sharp, work, cv::Size(5, 5), 1.0);

@@ -18,7 +18,8 @@ cv::Mat SyntheticScene(int w, int h, std::vector<double>& truth) {
   for (int y = 0; y < h; ++y)
     for (int x = 0; x < w; ++x) {
       const bool sky = y + 0.5 < truth[x];
-      img.at<cv::Vec3b>(y, x) = sky ? cv::Vec3b(235, 200 - y / 8, 160 - y / 8) : cv::Vec3b(60, 120 + (x * 7 + y * 13) % 20, 70);
+      img.at<cv::Vec3b>(y, x) =
+          sky ? cv::Vec3b(235, 200 - y / 8, 160 - y / 8) : cv::Vec3b(60, 120 + (x * 7 + y * 13) % 20, 70);
     }
   return img;
 }
