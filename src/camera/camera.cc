@@ -2,6 +2,7 @@
 #include "camera/camera.h"
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <cmath>
 #include <sstream>
 
@@ -36,18 +37,27 @@ void CameraIntrinsics::Check() const {
 }
 
 Eigen::Matrix3d CamFromEnu(const CameraPose& pose) {
-  const double yaw = DegToRad(pose.azimuth_deg), pitch = DegToRad(pose.pitch_deg), roll = DegToRad(pose.roll_deg);
-  const Eigen::Vector3d forward(std::sin(yaw) * std::cos(pitch), std::cos(yaw) * std::cos(pitch), std::sin(pitch));
+  return CamFromEnuRad(DegToRad(pose.azimuth_deg), DegToRad(pose.pitch_deg), DegToRad(pose.roll_deg));
+}
+
+CameraPose PoseFromCamFromEnu(const Eigen::Matrix3d& cam_from_enu) {
+  const Eigen::Vector3d right = cam_from_enu.row(0).transpose();
+  const Eigen::Vector3d forward = cam_from_enu.row(2).transpose();
+  CameraPose pose;
+  pose.pitch_deg = RadToDeg(std::asin(std::clamp(forward.z(), -1.0, 1.0)));
+  const double horizontal = std::hypot(forward.x(), forward.y());
+  if (horizontal < 1e-12) {  // looking straight up or down: the image's up direction sets the azimuth
+    const Eigen::Vector3d down = cam_from_enu.row(1).transpose();
+    const Eigen::Vector3d towards = forward.z() > 0 ? down : Eigen::Vector3d(-down);
+    pose.azimuth_deg = WrapAzimuthDeg(RadToDeg(std::atan2(towards.x(), towards.y())));
+    return pose;
+  }
+  const double yaw = std::atan2(forward.x(), forward.y());
+  pose.azimuth_deg = WrapAzimuthDeg(RadToDeg(yaw));
   const Eigen::Vector3d right0(std::cos(yaw), -std::sin(yaw), 0.0);
   const Eigen::Vector3d up0 = right0.cross(forward);
-  // Roll: the right side goes down for positive roll.
-  const Eigen::Vector3d right = std::cos(roll) * right0 - std::sin(roll) * up0;
-  const Eigen::Vector3d up = std::sin(roll) * right0 + std::cos(roll) * up0;
-  Eigen::Matrix3d m;
-  m.row(0) = right.transpose();
-  m.row(1) = -up.transpose();  // image y points down
-  m.row(2) = forward.transpose();
-  return m;
+  pose.roll_deg = RadToDeg(std::atan2(-right.dot(up0), right.dot(right0)));
+  return pose;
 }
 
 std::optional<Eigen::Vector2d> ProjectEnu(const Eigen::Matrix3d& cam_from_enu, const CameraIntrinsics& k,

@@ -76,3 +76,30 @@ TEST(CamFromEnu, IsARotationEvenLookingStraightUp) {
 
 }  // namespace
 }  // namespace horizonreg
+
+namespace horizonreg {
+namespace {
+
+TEST(PoseFromCamFromEnu, RoundTripsCamFromEnu) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> az(0.0, 360.0), pitch(-89.0, 89.0), roll(-179.0, 179.0);
+  for (int i = 0; i < 500; ++i) {
+    const CameraPose p{az(rng), pitch(rng), roll(rng)};
+    const CameraPose q = PoseFromCamFromEnu(CamFromEnu(p));
+    EXPECT_NEAR(AngDiffDeg(q.azimuth_deg, p.azimuth_deg), 0.0, 1e-9);
+    EXPECT_NEAR(q.pitch_deg, p.pitch_deg, 1e-9);
+    EXPECT_NEAR(q.roll_deg, p.roll_deg, 1e-9);
+  }
+}
+
+TEST(PoseFromCamFromEnu, GimbalLockFoldsRollIntoAzimuth) {
+  for (double pitch : {-90.0, 90.0}) {
+    const Eigen::Matrix3d m = CamFromEnu({40.0, pitch, 15.0});
+    const CameraPose q = PoseFromCamFromEnu(m);
+    EXPECT_NEAR(q.roll_deg, 0.0, 1e-12);
+    EXPECT_NEAR((CamFromEnu(q) - m).norm(), 0.0, 1e-9) << "pitch " << pitch;
+  }
+}
+
+}  // namespace
+}  // namespace horizonreg

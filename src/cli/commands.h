@@ -34,6 +34,19 @@ struct SkylineArgs {
 void AddSkylineCommand(CLI::App& app, SkylineArgs& args);
 int RunSkyline(const SkylineArgs& args);
 
+struct RegisterArgs {
+  std::string image;
+  std::vector<std::string> dem;
+  std::optional<double> lat, lon, agl, alt, hfov;
+  std::string sensors, hfov_range, json, overlay;
+  double refraction = kDefaultRefraction;
+  double max_distance = 100'000.0;
+  double step = 0.05;  // finer than `horizon`'s default: each bin holds its maximum, 0.25 deg bins bias pitch
+  bool no_exif = false;
+};
+void AddRegisterCommand(CLI::App& app, RegisterArgs& args);
+int RunRegister(const RegisterArgs& args);
+
 struct DemoArgs {
   std::string output_dir = ".";
   std::string dem;  // default: matplotlib's jacksboro_fault_dem.npz

@@ -26,8 +26,10 @@ int main(int argc, char** argv) {
   cli::HorizonArgs horizon_args;
   cli::DemoArgs demo_args;
   cli::SkylineArgs skyline_args;
+  cli::RegisterArgs register_args;
   cli::AddHorizonCommand(app, horizon_args);
   cli::AddSkylineCommand(app, skyline_args);
+  cli::AddRegisterCommand(app, register_args);
   cli::AddDemoCommand(app, demo_args);
   try {
     app.parse(argc, argv);
@@ -44,6 +46,7 @@ int main(int argc, char** argv) {
   try {
     if (app.got_subcommand("horizon")) return cli::RunHorizon(horizon_args);
     if (app.got_subcommand("skyline")) return cli::RunSkyline(skyline_args);
+    if (app.got_subcommand("register")) return cli::RunRegister(register_args);
     if (app.got_subcommand("demo")) return cli::RunDemo(demo_args);
     std::cerr << "horizonreg: no command given (see --help)\n";
     return 2;

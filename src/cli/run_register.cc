@@ -1,0 +1,198 @@
+// SPDX-License-Identifier: MIT
+// `horizonreg register`: camera azimuth, pitch, roll and focal length of a
+// photo from its skyline and the DEM horizon at its position.
+#include <CLI/CLI.hpp>
+#include <chrono>
+#include <future>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "cli/commands.h"
+#include "cli/image_io.h"
+#include "cli/output.h"
+#include "match/register.h"
+#include "overlay/registration_overlay.h"
+#include "sensors/sensors.h"
+#include "util/angles.h"
+#include "util/errors.h"
+
+namespace horizonreg::cli {
+
+void AddRegisterCommand(CLI::App& app, RegisterArgs& a) {
+  CLI::App* c = app.add_subcommand("register", "Recover the camera's azimuth, pitch, roll and focal length of a photo");
+  c->add_option("image", a.image, "Photo (JPEG, PNG, ...)")->required();
+  c->add_option("--dem", a.dem, "DEM file(s), any GDAL format; several files form a mosaic")->required();
+  c->add_option("--lat", a.lat, "Camera latitude, degrees (default: --sensors or the photo's GPS EXIF)");
+  c->add_option("--lon", a.lon, "Camera longitude, degrees");
+  auto* agl = c->add_option("--agl", a.agl, "Eye height above the ground, metres (default 1.7)");
+  auto* alt = c->add_option("--alt", a.alt, "Eye altitude above the ellipsoid, metres");
+  agl->excludes(alt);
+  c->add_option("--sensors", a.sensors, "Compass/inclinometer readings (JSON, DESIGN.md) used as priors");
+  auto* hfov = c->add_option("--hfov", a.hfov, "Known horizontal opening angle, degrees (searched within +-3%)");
+  auto* range = c->add_option("--hfov-range", a.hfov_range, "Opening angles to search, MIN:MAX degrees (default 10:120)");
+  hfov->excludes(range);
+  c->add_option("--step", a.step, "Azimuth step of the DEM horizon, degrees (360 / step whole)")->capture_default_str();
+  c->add_option("--refraction", a.refraction, "Refraction coefficient k")->capture_default_str();
+  c->add_option("--max-distance", a.max_distance, "Terrain farther than this is ignored, metres")->capture_default_str();
+  c->add_flag("--no-exif", a.no_exif, "Ignore the photo's EXIF (GPS, focal length, direction)");
+  c->add_option("--json", a.json, "Write the JSON here instead of stdout");
+  c->add_option("--overlay", a.overlay, "Draw the DEM horizon at the recovered pose over the photo into this PNG");
+}
+
+namespace {
+
+std::pair<double, double> ParseRange(const std::string& s) {
+  const auto colon = s.find(':');
+  double lo = NAN, hi = NAN;
+  try {
+    if (colon == std::string::npos) throw std::invalid_argument("no colon");
+    size_t used = 0;
+    lo = std::stod(s.substr(0, colon), &used);
+    if (used != colon) throw std::invalid_argument("trailing");
+    const std::string rest = s.substr(colon + 1);
+    hi = std::stod(rest, &used);
+    if (used != rest.size()) throw std::invalid_argument("trailing");
+  } catch (const std::exception&) {
+    throw InvalidArgument("--hfov-range '" + s + "': expected MIN:MAX in degrees, e.g. 30:60");
+  }
+  if (!(lo > 0 && hi >= lo && hi < 170))
+    throw InvalidArgument("--hfov-range '" + s + "': need 0 < MIN <= MAX < 170");
+  return {lo, hi};
+}
+
+double Ms(std::chrono::steady_clock::time_point a, std::chrono::steady_clock::time_point b) {
+  return std::chrono::duration<double, std::milli>(b - a).count();
+}
+
+}  // namespace
+
+int RunRegister(const RegisterArgs& a) {
+  using Clock = std::chrono::steady_clock;
+  const auto t0 = Clock::now();
+  // Prepare: check every input before computing.
+  if (a.lat.has_value() != a.lon.has_value()) throw InvalidArgument("--lat and --lon go together");
+  if (a.hfov && !(*a.hfov > 0 && *a.hfov < 170)) throw InvalidArgument("--hfov must be in (0, 170) degrees");
+  const cv::Mat image = ReadImage(a.image);
+  SensorReading sensors;
+  if (!a.sensors.empty()) sensors = ReadSensorJson(a.sensors);
+  const SensorReading exif = a.no_exif ? SensorReading{} : ReadExif(a.image);
+
+  std::optional<double> lat = a.lat, lon = a.lon;
+  std::string position_source = "arguments";
+  if (!lat && sensors.lat_deg && sensors.lon_deg) lat = sensors.lat_deg, lon = sensors.lon_deg, position_source = "sensors";
+  if (!lat && exif.lat_deg && exif.lon_deg) lat = exif.lat_deg, lon = exif.lon_deg, position_source = "exif";
+  if (!lat) throw InvalidArgument("register: no camera position: give --lat and --lon ('" + a.image +
+                                  "' has no GPS EXIF)");
+  if (!(std::abs(*lat) <= 90.0) || !(std::abs(*lon) <= 360.0)) throw InvalidArgument("register: invalid --lat/--lon");
+  std::optional<double> agl = a.agl, alt = a.alt;
+  if (!agl && !alt && sensors.agl_m) agl = sensors.agl_m;
+  if (!agl && !alt && position_source == "exif" && exif.alt_m) alt = exif.alt_m;
+
+  RegistrationOptions ro;
+  std::string fov_source = "default";
+  if (a.hfov) {
+    ro.min_hfov_deg = *a.hfov * 0.97, ro.max_hfov_deg = std::min(169.0, *a.hfov * 1.03), fov_source = "--hfov";
+  } else if (!a.hfov_range.empty()) {
+    std::tie(ro.min_hfov_deg, ro.max_hfov_deg) = ParseRange(a.hfov_range);
+    fov_source = "--hfov-range";
+  } else if (exif.focal_35mm) {
+    const double h = HfovFromFocal35mm(*exif.focal_35mm, image.cols, image.rows);
+    ro.min_hfov_deg = std::max(1.0, h * 0.9), ro.max_hfov_deg = std::min(169.0, h * 1.1), fov_source = "exif";
+  }
+  ro.prior.compass_deg = sensors.compass_deg ? sensors.compass_deg : exif.compass_deg;
+  if (!sensors.compass_deg && exif.compass_deg) ro.prior.compass_sigma_deg = 20.0;
+  ro.prior.pitch_deg = sensors.pitch_deg;
+  ro.prior.roll_deg = sensors.roll_deg;
+  ro.Check();
+  HorizonOptions ho;
+  ho.refraction = a.refraction;
+  ho.azimuth_step_deg = a.step;
+  ho.max_distance_m = a.max_distance;
+  ho.Check();
+  SkylineOptions so;
+  so.roll_hint_deg = sensors.roll_deg;
+  so.Check();
+
+  // The skyline runs on a second thread while the DEM loads.
+  auto skyline_job = std::async(std::launch::async, [&] {
+    const auto s0 = Clock::now();
+    Skyline s = ExtractSkyline(image, so);
+    return std::make_pair(std::move(s), Ms(s0, Clock::now()));
+  });
+  const auto h0 = Clock::now();
+  HorizonProfile profile;
+  try {
+    const Terrain terrain(a.dem);
+    const TerrainWindow window = terrain.ReadWindow({*lat, *lon, 0.0}, ho.max_distance_m);
+    const GeodeticPoint observer = ResolveObserver(window, *lat, *lon, agl, alt);
+    profile = ComputeHorizon(window, observer, ho);
+  } catch (...) {
+    skyline_job.wait();
+    throw;
+  }
+  const double horizon_ms = Ms(h0, Clock::now());
+  const auto [skyline, skyline_ms] = skyline_job.get();
+  const auto m0 = Clock::now();
+  const Registration r = Register(skyline, profile, ro);
+  const double match_ms = Ms(m0, Clock::now());
+
+  nlohmann::json j;
+  j["status"] = r.registered ? "registered" : "no_match";
+  j["message"] = r.message;
+  j["observer"] = {{"lat", Rounded(profile.observer.lat_deg, 7)},
+                   {"lon", Rounded(profile.observer.lon_deg, 7)},
+                   {"eye_height_m", Rounded(profile.observer.height_m, 2)},
+                   {"source", position_source}};
+  j["width"] = image.cols;
+  j["height"] = image.rows;
+  const auto pose_field = [&](double v, int decimals) { return r.registered ? Rounded(v, decimals) : nullptr; };
+  j["azimuth_deg"] = pose_field(r.pose.azimuth_deg, 4);
+  j["pitch_deg"] = pose_field(r.pose.pitch_deg, 4);
+  j["roll_deg"] = pose_field(r.pose.roll_deg, 4);
+  j["hfov_deg"] = pose_field(r.hfov_deg, 4);
+  j["focal_px"] = pose_field(r.focal_px, 2);
+  j["cx_px_per_deg"] = pose_field(DegToRad(r.focal_px), 3);
+  j["cy_px_per_deg"] = pose_field(DegToRad(r.focal_px), 3);
+  j["azimuth_sigma_deg"] = pose_field(r.azimuth_sigma_deg, 4);
+  j["pitch_sigma_deg"] = pose_field(r.pitch_sigma_deg, 4);
+  j["roll_sigma_deg"] = pose_field(r.roll_sigma_deg, 4);
+  j["rms_px"] = Rounded(r.rms_px, 3);
+  j["ex_px"] = Rounded(r.ex_px, 3);
+  j["ey_px"] = Rounded(r.ey_px, 3);
+  j["inlier_fraction"] = Rounded(r.inlier_fraction, 3);
+  j["ambiguity_ratio"] = Rounded(std::min(r.ambiguity_ratio, 1e6), 2);
+  j["hypotheses"] = r.hypotheses;
+  j["extrema"] = {{"image", r.image_extrema}, {"horizon", r.horizon_extrema}};
+  j["skyline_visible_fraction"] = Rounded(static_cast<double>(skyline.VisibleCount()) / skyline.width, 3);
+  j["hfov_search_deg"] = {Rounded(ro.min_hfov_deg, 2), Rounded(ro.max_hfov_deg, 2), fov_source};
+  nlohmann::json prior = nlohmann::json::object();
+  if (ro.prior.compass_deg) prior["compass_deg"] = Rounded(*ro.prior.compass_deg, 3);
+  if (ro.prior.pitch_deg) prior["pitch_deg"] = Rounded(*ro.prior.pitch_deg, 3);
+  if (ro.prior.roll_deg) prior["roll_deg"] = Rounded(*ro.prior.roll_deg, 3);
+  j["priors"] = prior;
+
+  if (!a.overlay.empty()) {
+    std::ostringstream caption;
+    caption.precision(2);
+    caption << std::fixed;
+    if (r.registered)
+      caption << "az " << r.pose.azimuth_deg << "  pitch " << r.pose.pitch_deg << "  roll " << r.pose.roll_deg
+              << "  hfov " << r.hfov_deg << "  rms " << r.rms_px << " px";
+    else
+      caption << "no match: " << r.message;
+    const cv::Mat drawn =
+        r.registered ? DrawHorizonCheck(image, profile, r.pose, r.Intrinsics(image.cols, image.rows), skyline.y,
+                                        caption.str())
+                     : DrawHorizonCheck(image, HorizonProfile{}, {}, CameraIntrinsics::FromHfov(image.cols, image.rows, 60),
+                                        skyline.y, caption.str());
+    WriteImage(a.overlay, drawn);
+  }
+  j["timing_ms"] = {{"horizon", Rounded(horizon_ms, 1)},
+                    {"skyline", Rounded(skyline_ms, 1)},
+                    {"match", Rounded(match_ms, 1)},
+                    {"total", Rounded(Ms(t0, Clock::now()), 1)}};
+  WriteOutput(a.json.empty() ? "-" : a.json, j.dump(1) + "\n");
+  return 0;
+}
+
+}  // namespace horizonreg::cli

@@ -1,0 +1,282 @@
+// SPDX-License-Identifier: MIT
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <random>
+
+#include "match/extrema.h"
+#include "match/hypothesis.h"
+#include "match/register.h"
+#include "util/angles.h"
+
+namespace horizonreg {
+namespace {
+
+TEST(ExtremaOptions, DefaultsAreValid) { EXPECT_NO_THROW(ExtremaOptions{}.Check()); }
+TEST(RegistrationOptions, DefaultsAreValid) { EXPECT_NO_THROW(RegistrationOptions{}.Check()); }
+
+TEST(RegistrationOptions, CheckNamesTheField) {
+  RegistrationOptions o;
+  o.max_hfov_deg = 5.0;
+  try {
+    o.Check();
+    FAIL();
+  } catch (const std::exception& e) {
+    EXPECT_NE(std::string(e.what()).find("max_hfov_deg = 5"), std::string::npos) << e.what();
+  }
+}
+
+TEST(FindExtrema, PeakAndDipWithTheirProminence) {
+  //                          0  1  2  3  4  5  6  7  8
+  const std::vector<double> v{0, 1, 5, 1, 2, 0, 3, 2, 2};
+  const auto e = FindExtrema(v, false, {});
+  ASSERT_EQ(e.size(), 5u);  // peaks at 2, 4, 6; dips at 3, 5
+  EXPECT_TRUE(e[0].is_max);
+  EXPECT_NEAR(e[0].value, 5.0, 1e-12);
+  EXPECT_NEAR(e[0].prominence, 5.0, 1e-12);  // the run's ends bound it: max(0, 0)
+  EXPECT_FALSE(e[1].is_max);
+  EXPECT_NEAR(e[1].prominence, 1.0, 1e-12);  // dip at 3: up to 2 on its right
+  EXPECT_NEAR(e[2].prominence, 1.0, 1e-12);  // peak 2 at 4: down to 1 on its left before the higher 5
+  EXPECT_NEAR(e[4].prominence, 1.0, 1e-12);  // peak 3 at 6: down to 0 on the left, 2 on the right (run end)
+}
+
+TEST(FindExtrema, SubSamplePositionOfASymmetricPeak) {
+  std::vector<double> v;
+  for (int i = 0; i < 20; ++i) v.push_back(-std::pow(i - 9.3, 2));
+  ExtremaOptions o;
+  o.min_prominence = 1.0;
+  const auto e = FindExtrema(v, false, o);
+  ASSERT_EQ(e.size(), 1u);
+  EXPECT_NEAR(e[0].position, 9.3, 1e-9);  // a parabola is found exactly
+}
+
+TEST(FindExtrema, CircularSignalWrapsAndNanSplitsRuns) {
+  std::vector<double> v(360);
+  for (int i = 0; i < 360; ++i) v[i] = std::cos(DegToRad(i));  // peak at 0, dip at 180
+  auto e = FindExtrema(v, true, {});
+  ASSERT_EQ(e.size(), 2u);
+  EXPECT_NEAR(e[0].position, 0.0, 1e-6);
+  EXPECT_NEAR(e[0].prominence, 2.0, 1e-6);
+  EXPECT_NEAR(e[1].position, 180.0, 1e-6);
+  // Not circular: the peak at index 0 sits at the end of the run.
+  e = FindExtrema(v, false, {});
+  ASSERT_EQ(e.size(), 1u);
+  EXPECT_FALSE(e[0].is_max);
+  // A NaN gap next to the dip: the dip is no longer confirmed.
+  v[181] = NAN;
+  e = FindExtrema(v, false, {});
+  EXPECT_TRUE(e.empty());
+}
+
+TEST(FindExtrema, MaxCountKeepsTheMostProminent) {
+  const std::vector<double> v{0, 1, 0, 3, 0, 2, 0};
+  ExtremaOptions o;
+  o.max_count = 2;
+  const auto e = FindExtrema(v, false, o);
+  int peaks = 0;
+  for (const auto& x : e)
+    if (x.is_max) {
+      ++peaks;
+      EXPECT_GE(x.value, 2.0);
+    }
+  EXPECT_EQ(peaks, 2);
+}
+
+ImagePoint Project(const CameraPose& pose, double f, int w, int h, const HorizonPoint& p) {
+  CameraIntrinsics k = CameraIntrinsics::FromHfov(w, h, 50.0);
+  k.focal_px = f;
+  const auto px = ProjectAzEl(CamFromEnu(pose), k, p.azimuth_deg, p.elevation_deg);
+  return {px->x(), px->y()};
+}
+
+TEST(PaperHypothesis, Eq5And8AreExactForTheSphericalImage) {
+  const double c = 1100.0, alpha_c = 358.0, cx = 512, cy = 341.5;  // C_x in pixels per radian
+  const HorizonPoint h1{345.0, 0.0}, h2{9.0, 0.0};
+  auto x_of = [&](const HorizonPoint& p) { return cx + c * std::sin(DegToRad(AngDiffDeg(p.azimuth_deg, alpha_c))); };
+  const auto hyp = PaperHypothesisFromPairs({x_of(h1), cy}, {x_of(h2), cy}, h1, h2, cx, cy);
+  ASSERT_TRUE(hyp);
+  EXPECT_NEAR(AngDiffDeg(hyp->azimuth_deg, alpha_c), 0.0, 1e-9);
+  EXPECT_NEAR(hyp->cx_px_per_deg, c * kPi / 180.0, 1e-9);
+}
+
+TEST(PaperHypothesis, Eq5ApproximatesAPinholeCamera) {
+  const int w = 1024, h = 683;
+  const double f = 1100.0;
+  const CameraPose pose{358.0, 0.0, 0.0};  // across north
+  const HorizonPoint h1{345.0, 0.0}, h2{9.0, 0.0};
+  const auto p1 = Project(pose, f, w, h, h1), p2 = Project(pose, f, w, h, h2);
+  const auto hyp = PaperHypothesisFromPairs(p1, p2, h1, h2, w / 2.0, h / 2.0);
+  ASSERT_TRUE(hyp);
+  EXPECT_NEAR(AngDiffDeg(hyp->azimuth_deg, pose.azimuth_deg), 0.0, 0.05);
+  EXPECT_NEAR(hyp->cx_px_per_deg / (f * kPi / 180.0), 1.0, 0.03);  // tan against sin at +-13 deg
+}
+
+TEST(PaperHypothesis, Eq6And9GivePitchAndCy) {
+  const int w = 1024, h = 683;
+  const double f = 1500.0;
+  const CameraPose pose{100.0, 2.0, 0.0};
+  const HorizonPoint h1{95.0, 1.0}, h2{104.0, 4.0};
+  const auto p1 = Project(pose, f, w, h, h1), p2 = Project(pose, f, w, h, h2);
+  const auto hyp = PaperHypothesisFromPairs(p1, p2, h1, h2, w / 2.0, h / 2.0);
+  ASSERT_TRUE(hyp);
+  EXPECT_NEAR(hyp->pitch_deg, 2.0, 0.05);                              // linearised: small error
+  EXPECT_NEAR(hyp->cy_px_per_deg / (f * kPi / 180.0), 1.0, 0.02);
+  EXPECT_NEAR(AngDiffDeg(hyp->azimuth_deg, pose.azimuth_deg), 0.0, 0.05);
+}
+
+TEST(PaperHypothesis, DegenerateInputIsRejected) {
+  EXPECT_FALSE(PaperHypothesisFromPairs({100, 10}, {100, 20}, {1, 1}, {2, 2}, 512, 300));  // same column
+  EXPECT_FALSE(PaperHypothesisFromPairs({100, 10}, {200, 20}, {2, 1}, {1, 2}, 512, 300));  // opposite order
+}
+
+TEST(TwoPointPose, RecoversAnyPoseAndFocalExactly) {
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> az(0, 360), pitch(-20, 20), roll(-25, 25), hfov(15, 100), u(0.05, 0.95);
+  const int w = 1024, h = 683;
+  int solved = 0;
+  for (int i = 0; i < 200; ++i) {
+    const CameraPose pose{az(rng), pitch(rng), roll(rng)};
+    CameraIntrinsics k = CameraIntrinsics::FromHfov(w, h, hfov(rng));
+    const Eigen::Matrix3d m = CamFromEnu(pose);
+    const Eigen::Vector2d q1(u(rng) * w, u(rng) * h), q2(u(rng) * w, u(rng) * h);
+    if ((q1 - q2).norm() < 50) continue;
+    const AzEl a1 = AzElFromEnu(UnprojectToEnu(m, k, q1)), a2 = AzElFromEnu(UnprojectToEnu(m, k, q2));
+    const auto all = TwoPointPoses({q1.x(), q1.y()}, {q2.x(), q2.y()}, {a1.azimuth_deg, a1.elevation_deg},
+                                   {a2.azimuth_deg, a2.elevation_deg}, k.cx, k.cy, 100.0, 20000.0);
+    const auto s = std::min_element(all.begin(), all.end(), [&](const PoseHypothesis& a, const PoseHypothesis& b) {
+      return std::abs(a.focal_px - k.focal_px) < std::abs(b.focal_px - k.focal_px);
+    });
+    ASSERT_NE(s, all.end());
+    ++solved;
+    EXPECT_NEAR(s->focal_px / k.focal_px, 1.0, 1e-5);
+    EXPECT_NEAR(AngDiffDeg(s->pose.azimuth_deg, pose.azimuth_deg), 0.0, 1e-4);
+    EXPECT_NEAR(s->pose.pitch_deg, pose.pitch_deg, 1e-4);
+    EXPECT_NEAR(s->pose.roll_deg, pose.roll_deg, 1e-4);
+  }
+  EXPECT_GT(solved, 150);
+}
+
+TEST(TwoPointPose, FocalOutsideTheRangeGivesNothing) {
+  const int w = 1000, h = 600;
+  const CameraPose pose{10, 0, 0};
+  const HorizonPoint h1{5, 1}, h2{15, 2};
+  const auto p1 = Project(pose, 2000, w, h, h1), p2 = Project(pose, 2000, w, h, h2);
+  EXPECT_EQ(TwoPointPoses(p1, p2, h1, h2, w / 2.0, h / 2.0, 1000, 3000).size(), 1u);
+  EXPECT_TRUE(TwoPointPoses(p1, p2, h1, h2, w / 2.0, h / 2.0, 100, 1500).empty());
+}
+
+// A mountain horizon without repeats: a sum of incommensurate waves.
+HorizonProfile SyntheticHorizon(double step, bool flat = false, int period_count = 0) {
+  HorizonProfile p;
+  p.azimuth_step_deg = step;
+  const int n = static_cast<int>(std::lround(360.0 / step));
+  for (int i = 0; i < n; ++i) {
+    const double a = DegToRad(i * step);
+    double e = 1.0;
+    if (period_count > 0)
+      e += 2.0 * std::sin(period_count * a);
+    else if (!flat)
+      e += 1.8 * std::sin(3 * a + 0.3) + 0.9 * std::sin(7 * a + 1.0) + 0.5 * std::sin(13 * a + 2.0) +
+           0.25 * std::sin(29 * a + 0.5) + 0.12 * std::sin(61 * a + 1.3);
+    p.elevation_deg.push_back(e);
+  }
+  p.distance_m.assign(n, 10000.0);
+  p.lat_deg.assign(n, 0.0);
+  p.lon_deg.assign(n, 0.0);
+  p.height_m.assign(n, 0.0);
+  return p;
+}
+
+Skyline SkylineOf(const HorizonProfile& p, const CameraPose& pose, const CameraIntrinsics& k) {
+  Skyline s;
+  s.width = k.width;
+  s.height = k.height;
+  s.y = ProjectedHorizonRows(p, pose, k);
+  for (double& y : s.y)
+    if (y < 0 || y >= k.height) y = NAN;
+  s.confidence.assign(k.width, 1.0);
+  return s;
+}
+
+TEST(Register, RecoversASyntheticPoseWithoutPriors) {
+  const HorizonProfile p = SyntheticHorizon(0.25);
+  for (const auto& [pose, hfov] : std::vector<std::pair<CameraPose, double>>{
+           {{123.4, 1.5, 0.0}, 40.0}, {{300.2, -2.0, 3.0}, 60.0}, {{12.0, 0.5, -2.5}, 25.0}}) {
+    const auto k = CameraIntrinsics::FromHfov(1024, 683, hfov);
+    const Registration r = Register(SkylineOf(p, pose, k), p, {});
+    ASSERT_TRUE(r.registered) << r.message;
+    EXPECT_NEAR(AngDiffDeg(r.pose.azimuth_deg, pose.azimuth_deg), 0.0, 0.01);
+    EXPECT_NEAR(r.pose.pitch_deg, pose.pitch_deg, 0.01);
+    EXPECT_NEAR(r.pose.roll_deg, pose.roll_deg, 0.02);
+    EXPECT_NEAR(r.focal_px / k.focal_px, 1.0, 0.002);
+    EXPECT_LT(r.rms_px, 0.2);
+    EXPECT_GT(r.hypotheses, 0);
+  }
+}
+
+TEST(Register, SurvivesNoiseAndAnOccluderSpike) {
+  const HorizonProfile p = SyntheticHorizon(0.25);
+  const CameraPose pose{200.0, 0.8, 1.2};
+  const auto k = CameraIntrinsics::FromHfov(1024, 683, 45.0);
+  Skyline s = SkylineOf(p, pose, k);
+  std::mt19937 rng(1);
+  std::normal_distribution<double> noise(0.0, 0.7);
+  for (double& y : s.y) y += noise(rng);
+  for (int c = 600; c < 630; ++c) s.y[c] -= 80.0;  // a tree the extractor did not flag
+  const Registration r = Register(s, p, {});
+  ASSERT_TRUE(r.registered) << r.message;
+  EXPECT_NEAR(AngDiffDeg(r.pose.azimuth_deg, pose.azimuth_deg), 0.0, 0.03);
+  EXPECT_NEAR(r.pose.pitch_deg, pose.pitch_deg, 0.03);
+  EXPECT_GT(r.azimuth_sigma_deg, 0.0);
+  EXPECT_LT(r.azimuth_sigma_deg, 0.05);
+}
+
+TEST(Register, FlatOrRepeatingHorizonGivesNoMatch) {
+  const CameraPose pose{80.0, 0.0, 0.0};
+  const auto k = CameraIntrinsics::FromHfov(1024, 683, 40.0);
+  const HorizonProfile flat = SyntheticHorizon(0.25, true);
+  EXPECT_FALSE(Register(SkylineOf(flat, pose, k), flat, {}).registered);
+  const HorizonProfile periodic = SyntheticHorizon(0.25, false, 12);  // 12 identical mountains
+  const Registration r = Register(SkylineOf(periodic, pose, k), periodic, {});
+  EXPECT_FALSE(r.registered) << r.message;
+}
+
+TEST(Register, ACompassPriorResolvesARepeatingHorizon) {
+  const CameraPose pose{80.0, 0.0, 0.0};
+  const auto k = CameraIntrinsics::FromHfov(1024, 683, 40.0);
+  const HorizonProfile periodic = SyntheticHorizon(0.25, false, 12);  // peaks every 30 deg
+  RegistrationOptions o;
+  o.prior.compass_deg = 86.0;
+  o.prior.compass_sigma_deg = 4.0;
+  o.min_hfov_deg = 35.0;
+  o.max_hfov_deg = 45.0;
+  const Registration r = Register(SkylineOf(periodic, pose, k), periodic, o);
+  ASSERT_TRUE(r.registered) << r.message;
+  EXPECT_NEAR(AngDiffDeg(r.pose.azimuth_deg, 80.0), 0.0, 0.01);
+}
+
+TEST(Register, EmptySkylineGivesNoMatchNotAnError) {
+  const HorizonProfile p = SyntheticHorizon(0.25);
+  Skyline s;
+  s.width = 640;
+  s.height = 480;
+  s.y.assign(640, NAN);
+  s.confidence.assign(640, 0.0);
+  const Registration r = Register(s, p, {});
+  EXPECT_FALSE(r.registered);
+  EXPECT_FALSE(r.message.empty());
+}
+
+TEST(HorizonDistancePx, PositiveBelowTheSilhouette) {
+  const HorizonProfile p = SyntheticHorizon(0.25);
+  const CameraPose pose{50.0, 1.0, 0.0};
+  const auto k = CameraIntrinsics::FromHfov(800, 600, 50.0);
+  const auto rows = ProjectedHorizonRows(p, pose, k);
+  EXPECT_NEAR(HorizonDistancePx(p, pose, k.focal_px, 800, 600, 400.5, rows[400]), 0.0, 1e-3);
+  EXPECT_GT(HorizonDistancePx(p, pose, k.focal_px, 800, 600, 400.5, rows[400] + 5), 2.0);
+  EXPECT_LT(HorizonDistancePx(p, pose, k.focal_px, 800, 600, 400.5, rows[400] - 5), -2.0);
+}
+
+}  // namespace
+}  // namespace horizonreg

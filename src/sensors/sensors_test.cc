@@ -1,0 +1,81 @@
+// SPDX-License-Identifier: MIT
+#include "sensors/sensors.h"
+
+#include <gtest/gtest.h>
+
+#include <exiv2/exiv2.hpp>
+#include <filesystem>
+#include <opencv2/imgcodecs.hpp>
+
+#include "util/errors.h"
+
+namespace horizonreg {
+namespace {
+
+TEST(ParseSensorJson, ReadsTheDesignFields) {
+  const auto r = ParseSensorJson(
+      R"({"compass_yaw_deg": -10.5, "inclinometer_pitch_deg": 1.0, "inclinometer_roll_deg": null, "lat": 46.2})", "x");
+  ASSERT_TRUE(r.compass_deg);
+  EXPECT_NEAR(*r.compass_deg, 349.5, 1e-12);
+  EXPECT_NEAR(*r.pitch_deg, 1.0, 1e-12);
+  EXPECT_FALSE(r.roll_deg);
+  EXPECT_FALSE(r.lon_deg);
+}
+
+TEST(ParseSensorJson, BadValuesNameTheFileAndField) {
+  try {
+    ParseSensorJson(R"({"inclinometer_pitch_deg": 120})", "s.json");
+    FAIL();
+  } catch (const InvalidArgument& e) {
+    EXPECT_NE(std::string(e.what()).find("s.json"), std::string::npos);
+    EXPECT_NE(std::string(e.what()).find("inclinometer_pitch_deg"), std::string::npos);
+  }
+  EXPECT_THROW(ParseSensorJson(R"({"compass_yaw_deg": "north"})", "s"), InvalidArgument);
+  EXPECT_THROW(ParseSensorJson("[1,2", "s"), InvalidArgument);
+  EXPECT_THROW(ReadSensorJson("/nonexistent/sensors.json"), IoError);
+}
+
+TEST(ReadExif, GpsDirectionAndFocalRoundTrip) {
+  const auto path = std::filesystem::temp_directory_path() / "horizonreg_exif_test.jpg";
+  cv::imwrite(path.string(), cv::Mat(32, 48, CV_8UC3, cv::Scalar(200, 150, 100)));
+  {
+    auto image = Exiv2::ImageFactory::open(path.string());
+    image->readMetadata();
+    Exiv2::ExifData& exif = image->exifData();
+    exif["Exif.GPSInfo.GPSLatitudeRef"] = "N";
+    exif["Exif.GPSInfo.GPSLatitude"] = "46/1 14/1 2364/100";
+    exif["Exif.GPSInfo.GPSLongitudeRef"] = "W";
+    exif["Exif.GPSInfo.GPSLongitude"] = "121/1 31/1 2304/100";
+    exif["Exif.GPSInfo.GPSAltitudeRef"] = Exiv2::byte(0);
+    exif["Exif.GPSInfo.GPSAltitude"] = Exiv2::Rational(21059, 10);
+    exif["Exif.GPSInfo.GPSImgDirectionRef"] = "T";
+    exif["Exif.GPSInfo.GPSImgDirection"] = Exiv2::Rational(3465, 20);
+    exif["Exif.Photo.FocalLengthIn35mmFilm"] = uint16_t(50);
+    image->writeMetadata();
+  }
+  const SensorReading r = ReadExif(path.string());
+  std::filesystem::remove(path);
+  ASSERT_TRUE(r.lat_deg && r.lon_deg && r.alt_m && r.compass_deg && r.focal_35mm);
+  EXPECT_NEAR(*r.lat_deg, 46 + 14 / 60.0 + 23.64 / 3600, 1e-9);
+  EXPECT_NEAR(*r.lon_deg, -(121 + 31 / 60.0 + 23.04 / 3600), 1e-9);
+  EXPECT_NEAR(*r.alt_m, 2105.9, 1e-9);
+  EXPECT_NEAR(*r.compass_deg, 173.25, 1e-9);
+  EXPECT_NEAR(*r.focal_35mm, 50.0, 1e-12);
+}
+
+TEST(ReadExif, NoMetadataOrNotAnImageGivesAnEmptyReading) {
+  const auto path = std::filesystem::temp_directory_path() / "horizonreg_noexif_test.png";
+  cv::imwrite(path.string(), cv::Mat(8, 8, CV_8UC1, cv::Scalar(0)));
+  const SensorReading r = ReadExif(path.string());
+  EXPECT_FALSE(r.lat_deg || r.compass_deg || r.focal_35mm);
+  std::filesystem::remove(path);
+  EXPECT_FALSE(ReadExif("/nonexistent.jpg").lat_deg);
+}
+
+TEST(HfovFromFocal35mm, FullFrameFiftyMillimetres) {
+  // 36 x 24 mm frame at 50 mm: horizontal 39.6 deg.
+  EXPECT_NEAR(HfovFromFocal35mm(50.0, 3000, 2000), 39.598, 0.01);
+}
+
+}  // namespace
+}  // namespace horizonreg
