@@ -41,7 +41,7 @@ struct RegisterArgs {
   std::string sensors, hfov_range, json, overlay;
   double refraction = kDefaultRefraction;
   double max_distance = 100'000.0;
-  double step = 0.05;  // finer than `horizon`'s default: each bin holds its maximum, 0.25 deg bins bias pitch
+  double step = 0.1;  // finer than `horizon`'s default: each bin holds its maximum, 0.25 deg bins bias pitch
   bool no_exif = false;
 };
 void AddRegisterCommand(CLI::App& app, RegisterArgs& args);

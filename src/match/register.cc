@@ -2,6 +2,7 @@
 #include "match/register.h"
 
 #include <ceres/ceres.h>
+#include <ceres/dynamic_autodiff_cost_function.h>
 
 #include <algorithm>
 #include <cmath>
@@ -79,7 +80,10 @@ double ScalarOf(const ceres::Jet<T, N>& v) {
 class HorizonLookup {
  public:
   explicit HorizonLookup(const HorizonProfile& p)
-      : n_(p.size()), step_rad_(DegToRad(p.azimuth_step_deg)), el_(static_cast<size_t>(n_) + 1) {
+      : n_(p.size()),
+        step_rad_(DegToRad(p.azimuth_step_deg)),
+        el_(static_cast<size_t>(n_) + 1),
+        distance_m_(p.distance_m) {
     for (int i = 0; i < n_; ++i) el_[i] = DegToRad(p.elevation_deg[i]);
     el_[n_] = el_[0];
   }
@@ -92,27 +96,41 @@ class HorizonLookup {
     return el_[i] + (el_[i + 1] - el_[i]) * t;
   }
   double Slope(double azimuth_rad) const {  // d(elevation)/d(azimuth), dimensionless
-    const double u = azimuth_rad / step_rad_;
-    const int i = static_cast<int>(((static_cast<long long>(std::floor(u)) % n_) + n_) % n_);
+    const int i = Bin(azimuth_rad);
     return (el_[i + 1] - el_[i]) / step_rad_;
+  }
+  double DistanceM(double azimuth_rad) const {  // of the nearer of the two bins around the azimuth
+    const int i = Bin(azimuth_rad);
+    return std::min(distance_m_[i], distance_m_[(i + 1) % n_]);
   }
 
  private:
+  int Bin(double azimuth_rad) const {
+    const double u = azimuth_rad / step_rad_;
+    return static_cast<int>(((static_cast<long long>(std::floor(u)) % n_) + n_) % n_);
+  }
   int n_;
   double step_rad_;
   std::vector<double> el_;
+  std::vector<double> distance_m_;
 };
+
+// Near terrain is where the DEM and the world differ most: a post's few
+// metres of error, the GPS error and the eye height move a ridge 100 m away
+// by degrees. Its columns count less in the fit (weight d^2 / (d^2 + d0^2)).
+constexpr double kNearFieldM = 400.0;
 
 struct Column {
   double x = 0.0, y = 0.0;  // skyline point
   double weight = 1.0;      // 1 / sqrt(1 + slope^2): vertical to perpendicular distance
+  double fit_weight = 1.0;  // weight times the near-field down-weighting, for the least squares
 };
 
 // Residual of one column, pixels: the DEM horizon's elevation minus the
 // elevation of the ray through (x, y), scaled to pixels across the silhouette.
 template <typename T>
-T ColumnResidual(const Eigen::Matrix<T, 3, 3>& cam_from_enu, const T& f, const Column& c, double cx, double cy,
-                 const HorizonLookup& horizon) {
+T ColumnResidual(const Eigen::Matrix<T, 3, 3>& cam_from_enu, const T& f, const Column& c, double weight, double cx,
+                 double cy, const HorizonLookup& horizon) {
   using std::atan2;
   using std::sqrt;
   const T xn = (c.x - cx) / f, yn = (c.y - cy) / f;
@@ -120,7 +138,7 @@ T ColumnResidual(const Eigen::Matrix<T, 3, 3>& cam_from_enu, const T& f, const C
   const Eigen::Matrix<T, 3, 1> d = cam_from_enu.transpose() * ray;
   const T az = atan2(d.x(), d.y());
   const T el = atan2(d.z(), sqrt(d.x() * d.x() + d.y() * d.y()));
-  return (horizon(az) - el) * f * (1.0 + yn * yn) * sqrt(1.0 + xn * xn) * c.weight;
+  return (horizon(az) - el) * f * (1.0 + yn * yn) * sqrt(1.0 + xn * xn) * weight;
 }
 
 struct Pose4 {
@@ -139,7 +157,7 @@ class Scorer {
   Scorer(const HorizonLookup& horizon, double cx, double cy, double tau)
       : horizon_(horizon), cx_(cx), cy_(cy), tau2_(tau * tau) {}
   double Residual(const Eigen::Matrix3d& m, double f, const Column& c) const {
-    return ColumnResidual<double>(m, f, c, cx_, cy_, horizon_);
+    return ColumnResidual<double>(m, f, c, c.weight, cx_, cy_, horizon_);
   }
   // Mean truncated squared residual; stops early once above `bound`.
   double Cost(const Pose4& p, const std::vector<Column>& cols, double bound = INFINITY) const {
@@ -161,6 +179,8 @@ class Scorer {
       const double az = std::atan2(d.x(), d.y());
       const double s = horizon_.Slope(az) / std::max(0.05, std::hypot(d.x(), d.y()) / d.norm());
       c.weight = 1.0 / std::sqrt(1.0 + s * s);
+      const double dist = horizon_.DistanceM(az);
+      c.fit_weight = c.weight * dist * dist / (dist * dist + kNearFieldM * kNearFieldM);
     }
   }
   const HorizonLookup& horizon() const { return horizon_; }
@@ -181,14 +201,22 @@ std::vector<Column> Subsample(const std::vector<Column>& all, int count) {
   return out;
 }
 
-struct CeresColumnCost {
-  Column col;
+// All columns in one residual block (the rotation is built once per
+// evaluation); residual i is the column's distance times sqrt(w_i), the
+// iteratively reweighted Cauchy weight.
+struct AllColumnsCost {
+  const std::vector<Column>* cols;
+  const std::vector<double>* sqrt_w;
   double cx, cy;
   const HorizonLookup* horizon;
   template <typename T>
-  bool operator()(const T* const p, T* residual) const {
+  bool operator()(T const* const* params, T* residuals) const {
+    const T* p = params[0];
     const Eigen::Matrix<T, 3, 3> m = CamFromEnuRad(p[0], p[1], p[2]);
-    residual[0] = ColumnResidual<T>(m, p[3], col, cx, cy, *horizon);
+    for (size_t i = 0; i < cols->size(); ++i) {
+      const Column& c = (*cols)[i];
+      residuals[i] = ColumnResidual<T>(m, p[3], c, c.fit_weight * (*sqrt_w)[i], cx, cy, *horizon);
+    }
     return true;
   }
 };
@@ -198,44 +226,58 @@ struct Refined {
   double sigma[4] = {NAN, NAN, NAN, NAN};
 };
 
-// Robust nonlinear least squares of yaw, pitch, roll and focal length.
+// Robust nonlinear least squares of yaw, pitch, roll and focal length:
+// Levenberg-Marquardt (Ceres) inside iteratively reweighted least squares
+// with the Cauchy loss of scale tau / 3.
 Refined RefineLeastSquares(const Scorer& scorer, const std::vector<Column>& cols, const Pose4& start, double tau,
                            bool want_covariance, double effective_fraction) {
   double p[4] = {start.yaw, start.pitch, start.roll, start.f};
-  ceres::Problem::Options po;
-  po.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
-  ceres::Problem problem(po);
-  ceres::CauchyLoss loss(tau / 3.0);
-  for (const Column& c : cols) {
-    auto* cost = new ceres::AutoDiffCostFunction<CeresColumnCost, 1, 4>(
-        new CeresColumnCost{c, scorer.cx(), scorer.cy(), &scorer.horizon()});
-    problem.AddResidualBlock(cost, &loss, p);
-  }
+  const double c2 = std::pow(tau / 3.0, 2);
+  std::vector<double> sqrt_w(cols.size(), 1.0);
+  auto reweight = [&] {
+    const Eigen::Matrix3d m = CamFromEnuRad(p[0], p[1], p[2]);
+    for (size_t i = 0; i < cols.size(); ++i) {
+      const double r = ColumnResidual<double>(m, p[3], cols[i], cols[i].fit_weight, scorer.cx(), scorer.cy(),
+                                              scorer.horizon());
+      sqrt_w[i] = 1.0 / std::sqrt(1.0 + r * r / c2);
+    }
+  };
+  auto* cost = new ceres::DynamicAutoDiffCostFunction<AllColumnsCost, 4>(
+      new AllColumnsCost{&cols, &sqrt_w, scorer.cx(), scorer.cy(), &scorer.horizon()});
+  cost->AddParameterBlock(4);
+  cost->SetNumResiduals(static_cast<int>(cols.size()));
+  ceres::Problem problem;
+  problem.AddResidualBlock(cost, nullptr, p);
   problem.SetParameterLowerBound(p, 3, 0.2 * start.f);
   problem.SetParameterUpperBound(p, 3, 5.0 * start.f);
   ceres::Solver::Options so;
   so.linear_solver_type = ceres::DENSE_QR;
-  so.max_num_iterations = 40;
+  so.max_num_iterations = 15;
+  so.function_tolerance = 1e-8;
   so.logging_type = ceres::SILENT;
-  so.minimizer_progress_to_stdout = false;
   so.num_threads = 1;
-  ceres::Solver::Summary summary;
-  ceres::Solve(so, &problem, &summary);
+  for (int round = 0; round < 4; ++round) {
+    reweight();
+    ceres::Solver::Summary summary;
+    ceres::Solve(so, &problem, &summary);
+  }
   Refined r;
   r.pose = {p[0], p[1], p[2], p[3]};
   if (!want_covariance) return r;
   // Residual variance from the inlier columns.
   const Eigen::Matrix3d m = CamFromEnuRad(p[0], p[1], p[2]);
-  double ss = 0.0;
+  double ss = 0.0, sw = 0.0;
   int n = 0;
-  for (const Column& c : cols) {
-    const double res = scorer.Residual(m, p[3], c);
+  for (size_t i = 0; i < cols.size(); ++i) {
+    const double res = ColumnResidual<double>(m, p[3], cols[i], cols[i].fit_weight, scorer.cx(), scorer.cy(),
+                                              scorer.horizon());
     if (std::abs(res) < tau) {
-      ss += res * res;
+      ss += res * res * sqrt_w[i] * sqrt_w[i];
+      sw += sqrt_w[i] * sqrt_w[i];
       ++n;
     }
   }
-  if (n <= 4) return r;
+  if (n <= 4 || !(sw > 4.0)) return r;
   ceres::Covariance::Options co;
   co.algorithm_type = ceres::DENSE_SVD;
   co.null_space_rank = -1;
@@ -246,7 +288,7 @@ Refined RefineLeastSquares(const Scorer& scorer, const std::vector<Column>& cols
   covariance.GetCovarianceBlock(p, p, cov);
   // Neighbouring columns share DEM bins and skyline pixels: count only the
   // independent ones (effective_fraction of the columns).
-  const double variance = ss / (n - 4) / std::clamp(effective_fraction, 1e-3, 1.0);
+  const double variance = ss / (sw - 4.0) / std::clamp(effective_fraction, 1e-3, 1.0);
   for (int i = 0; i < 4; ++i) r.sigma[i] = std::sqrt(std::max(0.0, cov[i * 5] * variance));
   return r;
 }
@@ -551,20 +593,24 @@ Registration Register(const Skyline& skyline, const HorizonProfile& horizon, con
   const Refined fr = RefineLeastSquares(scorer, final_cols, best.pose, tau, true, independent);
   const Pose4 bp = fr.pose;
   const Eigen::Matrix3d m = CamFromEnuRad(bp.yaw, bp.pitch, bp.roll);
-  double ss = 0.0;
-  int inliers = 0;
+  // Near-field columns count by their distance weight: they neither confirm
+  // nor refute a pose much.
+  scorer.Reweight(bp, all);
+  double ss = 0.0, w_in = 0.0, w_all = 0.0;
   for (const Column& c : all) {
     const double r = scorer.Residual(m, bp.f, c);
+    const double w = c.fit_weight / c.weight;
+    w_all += w;
     if (std::abs(r) < tau) {
-      ss += r * r;
-      ++inliers;
+      ss += w * r * r;
+      w_in += w;
     }
   }
   out.pose = bp.ToPose();
   out.focal_px = bp.f;
   out.hfov_deg = RadToDeg(2.0 * std::atan(0.5 * width / bp.f));
-  out.inlier_fraction = static_cast<double>(inliers) / all.size();
-  out.rms_px = inliers > 0 ? std::sqrt(ss / inliers) : NAN;
+  out.inlier_fraction = w_all > 0 ? w_in / w_all : 0.0;
+  out.rms_px = w_in > 0 ? std::sqrt(ss / w_in) : NAN;
   out.ambiguity_ratio = second / std::max(best.cost, 1e-9 * scorer.tau2());
   out.azimuth_sigma_deg = RadToDeg(fr.sigma[0]);
   out.pitch_sigma_deg = RadToDeg(fr.sigma[1]);

@@ -53,8 +53,8 @@ struct Registration {
   CameraPose pose;                // meaningful when a best pose exists (also for no_match, for diagnosis)
   double focal_px = 0.0;
   double hfov_deg = 0.0;
-  double rms_px = NAN;            // RMS distance of the inlier columns to the projected horizon
-  double inlier_fraction = 0.0;   // visible columns within inlier_px
+  double rms_px = NAN;            // RMS distance of the inlier columns to the projected horizon (near field down-weighted)
+  double inlier_fraction = 0.0;   // visible columns within inlier_px, near-field columns (< ~400 m) down-weighted
   double ex_px = NAN, ey_px = NAN;  // paper eq. (13), (14): RMS horizontal and vertical differences
   double ambiguity_ratio = 0.0;   // cost of the best distinct alternative over the best's (inf if none)
   double azimuth_sigma_deg = NAN, pitch_sigma_deg = NAN, roll_sigma_deg = NAN, focal_sigma_px = NAN;
