@@ -161,6 +161,7 @@ int RunRegister(const RegisterArgs& a) {
   j["ey_px"] = Rounded(r.ey_px, 3);
   j["inlier_fraction"] = Rounded(r.inlier_fraction, 3);
   j["ambiguity_ratio"] = Rounded(std::min(r.ambiguity_ratio, 1e6), 2);
+  j["second_inlier_fraction"] = Rounded(r.second_inlier_fraction, 3);
   j["hypotheses"] = r.hypotheses;
   j["extrema"] = {{"image", r.image_extrema}, {"horizon", r.horizon_extrema}};
   j["skyline_visible_fraction"] = Rounded(static_cast<double>(skyline.VisibleCount()) / skyline.width, 3);

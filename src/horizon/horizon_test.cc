@@ -51,7 +51,7 @@ TEST(FastAtan2, IsAccurateEverywhere) {
   for (double a = -kPi; a <= kPi; a += 1e-4) {
     for (double r : {1e-3, 1.0, 1e5}) {
       const double y = r * std::sin(a), x = r * std::cos(a);
-      worst = std::max(worst, std::abs(AngDiffDeg(RadToDeg(internal::FastAtan2(y, x)), RadToDeg(std::atan2(y, x)))));
+      worst = std::max(worst, std::abs(AngDiffDeg(RadToDeg(FastAtan2(y, x)), RadToDeg(std::atan2(y, x)))));
     }
   }
   EXPECT_LT(worst, RadToDeg(2e-7));

@@ -2,6 +2,7 @@
 #include "match/hypothesis.h"
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <cmath>
 
 #include "util/angles.h"
@@ -82,25 +83,34 @@ std::vector<PoseHypothesis> TwoPointPoses(const ImagePoint& p1, const ImagePoint
   const Eigen::Vector2d u1(p1.x - cx, p1.y - cy), u2(p2.x - cx, p2.y - cy);
   if ((u1 - u2).norm() < 1e-9 || target > 1.0 - 1e-12 || !(min_focal_px > 0 && max_focal_px > min_focal_px))
     return out;
-  constexpr int kGrid = 12;
-  const double ratio = std::pow(max_focal_px / min_focal_px, 1.0 / kGrid);
-  double f0 = min_focal_px, g0 = RayCosine(u1, u2, f0) - target;
-  for (int i = 1; i <= kGrid; ++i) {
-    const double f1 = i == kGrid ? max_focal_px : f0 * ratio, g1 = RayCosine(u1, u2, f1) - target;
-    if ((g0 <= 0) != (g1 <= 0)) {
-      double lo = f0, hi = f1;
-      const bool rising = g0 <= 0;
-      for (int k = 0; k < 50 && hi - lo > 1e-7 * hi; ++k) {
-        const double mid = 0.5 * (lo + hi);
-        ((RayCosine(u1, u2, mid) - target <= 0) == rising ? lo : hi) = mid;
-      }
-      const double f = 0.5 * (lo + hi);
-      const Eigen::Vector3d r1 = Eigen::Vector3d(u1.x() / f, u1.y() / f, 1.0).normalized();
-      const Eigen::Vector3d r2 = Eigen::Vector3d(u2.x() / f, u2.y() / f, 1.0).normalized();
-      out.push_back({PoseFromCamFromEnu(TwoVectorRotation(d1, d2, r1, r2)), f});  // maps d_i onto r_i
+  // cos(angle) = (a + F) / sqrt((b + F)(c + F)) with F = f^2: squared, a
+  // quadratic in F; keep the roots where a + F has the sign of the cosine.
+  const double pa = u1.dot(u2), pb = u1.squaredNorm(), pc = u2.squaredNorm(), t2 = target * target;
+  const double qa = 1.0 - t2, qb = 2.0 * pa - t2 * (pb + pc), qc = pa * pa - t2 * pb * pc;
+  double roots[2];
+  int n = 0;
+  if (std::abs(qa) < 1e-15) {
+    if (std::abs(qb) > 0) roots[n++] = -qc / qb;
+  } else {
+    const double disc = qb * qb - 4.0 * qa * qc;
+    if (disc >= 0) {
+      const double sq = std::sqrt(disc);
+      const double q = -0.5 * (qb + (qb >= 0 ? sq : -sq));  // stable roots
+      roots[n++] = q / qa;
+      if (q != 0) roots[n++] = qc / q;
     }
-    f0 = f1;
-    g0 = g1;
+  }
+  std::sort(roots, roots + n);
+  for (int i = 0; i < n; ++i) {
+    const double big_f = roots[i];
+    if (!(big_f > 0)) continue;
+    const double f = std::sqrt(big_f);
+    if (f < min_focal_px || f > max_focal_px) continue;
+    if (std::abs(RayCosine(u1, u2, f) - target) > 1e-9) continue;  // a root of the squared equation only
+    if (i == 1 && n == 2 && std::abs(roots[1] - roots[0]) < 1e-12 * roots[1]) continue;
+    const Eigen::Vector3d r1 = Eigen::Vector3d(u1.x() / f, u1.y() / f, 1.0).normalized();
+    const Eigen::Vector3d r2 = Eigen::Vector3d(u2.x() / f, u2.y() / f, 1.0).normalized();
+    out.push_back({PoseFromCamFromEnu(TwoVectorRotation(d1, d2, r1, r2)), f});  // maps d_i onto r_i
   }
   return out;
 }

@@ -46,9 +46,9 @@ struct PoseHypothesis {
 
 // Exact pinhole solutions with roll: each focal length in [min_focal_px,
 // max_focal_px] for which the angle between the two pixel rays equals the
-// angle between the two horizon directions (brackets on a log grid, then
-// bisection; there are two when both points lie on one side of the centre and
-// the range reaches very wide angles), each with the rotation that takes both
+// angle between the two horizon directions (closed form: a quadratic in f^2;
+// there are two when both points lie on one side of the centre and the range
+// reaches very wide angles), each with the rotation that takes both
 // rays onto both directions (triad on the bisectors). Empty when no focal
 // length in the range fits. Principal point (cx, cy). Thread-safe.
 std::vector<PoseHypothesis> TwoPointPoses(const ImagePoint& p1, const ImagePoint& p2, const HorizonPoint& h1,

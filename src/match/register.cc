@@ -14,6 +14,7 @@
 #include "match/hypothesis.h"
 #include "util/angles.h"
 #include "util/errors.h"
+#include "util/fast_math.h"
 
 namespace horizonreg {
 
@@ -51,6 +52,8 @@ void RegistrationOptions::Check() const {
   if (coarse_columns < 8) fail("coarse_columns", coarse_columns, "coarse_columns >= 8");
   if (refine_columns < 8) fail("refine_columns", refine_columns, "refine_columns >= 8");
   if (candidates < 2) fail("candidates", candidates, "candidates >= 2");
+  if (quick_columns < 8) fail("quick_columns", quick_columns, "quick_columns >= 8");
+  if (refined_candidates < 2) fail("refined_candidates", refined_candidates, "refined_candidates >= 2");
   if (!(inlier_px > 0.0)) fail("inlier_px", inlier_px, "inlier_px > 0");
   if (!(min_visible_fraction >= 0.0 && min_visible_fraction <= 1.0))
     fail("min_visible_fraction", min_visible_fraction, "0 <= f <= 1");
@@ -160,16 +163,33 @@ class Scorer {
     return ColumnResidual<double>(m, f, c, c.weight, cx_, cy_, horizon_);
   }
   // Mean truncated squared residual; stops early once above `bound`.
+  // ColumnResidual with the fast arctangent (|error| < 2e-7 rad), for scoring.
+  double FastResidual(const Eigen::Matrix3d& m, double f, const Column& c) const {
+    const double xn = (c.x - cx_) / f, yn = (c.y - cy_) / f;
+    const Eigen::Vector3d d = m.transpose() * Eigen::Vector3d(xn, yn, 1.0);
+    const double h = std::sqrt(d.x() * d.x() + d.y() * d.y());
+    const double az = FastAtan2(d.x(), d.y()), el = FastAtan2(d.z(), h);
+    return (horizon_(az) - el) * f * (1.0 + yn * yn) * std::sqrt(1.0 + xn * xn) * c.weight;
+  }
   double Cost(const Pose4& p, const std::vector<Column>& cols, double bound = INFINITY) const {
     const Eigen::Matrix3d m = CamFromEnuRad(p.yaw, p.pitch, p.roll);
     const double limit = bound * cols.size();
     double sum = 0.0;
     for (const Column& c : cols) {
-      const double r = Residual(m, p.f, c);
+      const double r = FastResidual(m, p.f, c);
       sum += std::min(r * r, tau2_);
       if (sum > limit) return INFINITY;
     }
     return sum / cols.size();
+  }
+  double InlierFraction(const Pose4& p, const std::vector<Column>& cols) const {
+    const Eigen::Matrix3d m = CamFromEnuRad(p.yaw, p.pitch, p.roll);
+    int n = 0;
+    for (const Column& c : cols) {
+      const double r = FastResidual(m, p.f, c);
+      n += r * r < tau2_;
+    }
+    return cols.empty() ? 0.0 : static_cast<double>(n) / cols.size();
   }
   // Column weights for a pose: the slope of the projected silhouette.
   void Reweight(const Pose4& p, std::vector<Column>& cols) const {
@@ -230,7 +250,7 @@ struct Refined {
 // Levenberg-Marquardt (Ceres) inside iteratively reweighted least squares
 // with the Cauchy loss of scale tau / 3.
 Refined RefineLeastSquares(const Scorer& scorer, const std::vector<Column>& cols, const Pose4& start, double tau,
-                           bool want_covariance, double effective_fraction) {
+                           int rounds, bool want_covariance, double effective_fraction) {
   double p[4] = {start.yaw, start.pitch, start.roll, start.f};
   const double c2 = std::pow(tau / 3.0, 2);
   std::vector<double> sqrt_w(cols.size(), 1.0);
@@ -252,11 +272,11 @@ Refined RefineLeastSquares(const Scorer& scorer, const std::vector<Column>& cols
   problem.SetParameterUpperBound(p, 3, 5.0 * start.f);
   ceres::Solver::Options so;
   so.linear_solver_type = ceres::DENSE_QR;
-  so.max_num_iterations = 15;
+  so.max_num_iterations = 10;
   so.function_tolerance = 1e-8;
   so.logging_type = ceres::SILENT;
   so.num_threads = 1;
-  for (int round = 0; round < 4; ++round) {
+  for (int round = 0; round < rounds; ++round) {
     reweight();
     ceres::Solver::Summary summary;
     ceres::Solve(so, &problem, &summary);
@@ -305,7 +325,7 @@ struct PaperCorrection {
 PaperCorrection CorrectLinear(const Scorer& scorer, const std::vector<Column>& cols, const Pose4& start, int width,
                               double tau, const HorizonProfile& profile) {
   PaperCorrection out{start};
-  for (int iter = 0; iter < 3; ++iter) {
+  for (int iter = 0; iter < 2; ++iter) {
     const Pose4& p = out.pose;
     const Eigen::Matrix3d m = CamFromEnuRad(p.yaw, p.pitch, p.roll);
     CameraIntrinsics k = CameraIntrinsics::FromHfov(width, 2 * static_cast<int>(scorer.cy()), 60.0);
@@ -402,6 +422,7 @@ bool WithinPrior(const RegistrationOptions& o, const CameraPose& pose) {
 struct Candidate {
   Pose4 pose;
   double cost = INFINITY;
+  double inliers = 0.0;  // fraction of the columns within tau
 };
 
 bool SamePose(const Pose4& a, const Pose4& b, double width) {
@@ -409,6 +430,24 @@ bool SamePose(const Pose4& a, const Pose4& b, double width) {
   const double tol = std::max(DegToRad(0.5), 0.03 * hfov);
   return std::abs(std::remainder(a.yaw - b.yaw, 2 * kPi)) < tol && std::abs(a.pitch - b.pitch) < tol &&
          std::abs(std::log(a.f / b.f)) < 0.05;
+}
+
+// Smallest and largest cosine of the angle between the rays through two
+// pixels for focal lengths in [fmin, fmax] (sampled finely on a log grid,
+// widened by a margin for what falls between samples).
+std::pair<double, double> RayCosineRange(const ImagePoint& p1, const ImagePoint& p2, double cx, double cy, double fmin,
+                                         double fmax) {
+  const Eigen::Vector2d u1(p1.x - cx, p1.y - cy), u2(p2.x - cx, p2.y - cy);
+  double lo = 1.0, hi = -1.0;
+  constexpr int kSteps = 48;
+  for (int i = 0; i <= kSteps; ++i) {
+    const double f = fmin * std::pow(fmax / fmin, static_cast<double>(i) / kSteps), f2 = f * f;
+    const double c = (u1.dot(u2) + f2) / std::sqrt((u1.squaredNorm() + f2) * (u2.squaredNorm() + f2));
+    lo = std::min(lo, c);
+    hi = std::max(hi, c);
+  }
+  const double margin = 0.02 * (hi - lo) + 1e-9;
+  return {lo - margin, hi + margin};
 }
 
 }  // namespace
@@ -497,23 +536,34 @@ Registration Register(const Skyline& skyline, const HorizonProfile& horizon, con
   auto dem_point = [&](const Extremum& e) {
     return HorizonPoint{e.position * step, e.value};
   };
+  std::vector<Eigen::Vector3d> dem_dirs;
+  for (const Extremum& e : dem) {
+    const double az = DegToRad(e.position * step), el = DegToRad(e.value);
+    dem_dirs.emplace_back(std::sin(az) * std::cos(el), std::cos(az) * std::cos(el), std::sin(el));
+  }
+  auto DirectionOf = [&](const Extremum& e) -> const Eigen::Vector3d& { return dem_dirs[&e - dem.data()]; };
 
   // Hypotheses: every pair of image extrema far enough apart against every
   // pair of DEM extrema of the same kinds whose angular separation a camera
   // in the opening-angle range could show.
   std::vector<Candidate> scored;
-  const double min_sep = width / 8.0;
+  const double min_sep = width / 20.0;
   for (size_t a = 0; a < img.size(); ++a) {
     for (size_t b = a + 1; b < img.size(); ++b) {
       const Extremum &ia = img[a], &ib = img[b];
       const ImagePoint p1{ia.position + 0.5, -ia.value}, p2{ib.position + 0.5, -ib.value};
       if (p2.x - p1.x < min_sep) continue;
+      // The cosines of the angle between the two pixel rays over the focal
+      // range: a DEM pair whose angle falls outside cannot be this pair.
+      const std::pair<double, double> cos_range = RayCosineRange(p1, p2, cx, cy, fmin, fmax);
       for (const Extremum& da : dem) {
         if (da.is_max != ia.is_max) continue;
         for (const Extremum& db : dem) {
           if (db.is_max != ib.is_max || &da == &db) continue;
           const double sep = WrapAzimuthDeg((db.position - da.position) * step);
           if (sep <= 0.0 || sep > options.max_hfov_deg) continue;
+          const double cos_dem = DirectionOf(da).dot(DirectionOf(db));
+          if (cos_dem < cos_range.first || cos_dem > cos_range.second) continue;
           for (const PoseHypothesis& hyp : TwoPointPoses(p1, p2, dem_point(da), dem_point(db), cx, cy, fmin, fmax)) {
           const PoseHypothesis* h = &hyp;
           // An image extremum cannot be more prominent than its DEM match
@@ -553,23 +603,37 @@ Registration Register(const Skyline& skyline, const HorizonProfile& horizon, con
                      [&](const Candidate& d) { return SamePose(d.pose, c.pose, width); }))
       distinct.push_back(c);
   }
-  std::vector<Column> refine = Subsample(all, options.refine_columns);
-  std::vector<Candidate> refined;
+  // Stage 1: the paper's linear corrections (eq. 11-14) on a few columns.
+  std::vector<Column> quick = Subsample(all, options.quick_columns);
   std::vector<PaperCorrection> corrections;
-  for (const Candidate& c : distinct) {
-    const PaperCorrection pc = CorrectLinear(scorer, refine, c.pose, width, tau, horizon);
-    Pose4 start = scorer.Cost(pc.pose, refine) < scorer.Cost(c.pose, refine) ? pc.pose : c.pose;
-    scorer.Reweight(start, refine);
-    const Refined r = RefineLeastSquares(scorer, refine, start, tau, false, 1.0);
+  for (Candidate& c : distinct) {
+    const PaperCorrection pc = CorrectLinear(scorer, quick, c.pose, width, tau, horizon);
+    const double corrected = scorer.Cost(pc.pose, quick);
+    c.cost = scorer.Cost(c.pose, quick);
+    if (corrected < c.cost) c = {pc.pose, corrected};
+    corrections.push_back(pc);
+  }
+  std::vector<size_t> by_cost(distinct.size());
+  std::iota(by_cost.begin(), by_cost.end(), 0);
+  std::sort(by_cost.begin(), by_cost.end(), [&](size_t x, size_t y) { return distinct[x].cost < distinct[y].cost; });
+  // Stage 2: robust least squares for the best few, ranked on all columns.
+  std::vector<Candidate> refined;
+  std::vector<PaperCorrection> refined_corrections;
+  for (size_t k = 0; k < by_cost.size() && static_cast<int>(k) < options.refined_candidates; ++k) {
+    const Candidate& c = distinct[by_cost[k]];
+    scorer.Reweight(c.pose, quick);
+    const Refined r = RefineLeastSquares(scorer, quick, c.pose, tau, 2, false, 1.0);
     Candidate rc{r.pose, 0.0};
     const CameraPose cp = rc.pose.ToPose();
     if (!WithinPrior(options, cp)) continue;
     const double hfov = RadToDeg(2.0 * std::atan(0.5 * width / rc.pose.f));
     if (hfov < options.min_hfov_deg * 0.95 || hfov > options.max_hfov_deg * 1.05) continue;
     rc.cost = scorer.Cost(rc.pose, all) + 0.02 * PriorPenalty(options.prior, cp) * scorer.tau2() / 9.0;
+    rc.inliers = scorer.InlierFraction(rc.pose, all);
     refined.push_back(rc);
-    corrections.push_back(pc);
+    refined_corrections.push_back(corrections[by_cost[k]]);
   }
+  corrections = std::move(refined_corrections);
   if (refined.empty()) {
     out.message = "no refined hypothesis within the opening-angle range and priors";
     return out;
@@ -582,6 +646,7 @@ Registration Register(const Skyline& skyline, const HorizonProfile& horizon, con
   for (size_t i = 1; i < order.size(); ++i)
     if (!SamePose(refined[order[i]].pose, best.pose, width)) {
       second = refined[order[i]].cost;
+      out.second_inlier_fraction = refined[order[i]].inliers;
       break;
     }
 
@@ -590,7 +655,7 @@ Registration Register(const Skyline& skyline, const HorizonProfile& horizon, con
   const std::vector<Column> final_cols = Subsample(all, options.refine_columns);
   const double hfov_rad = 2.0 * std::atan(0.5 * width / best.pose.f);
   const double independent = std::min(1.0, RadToDeg(hfov_rad) / step / final_cols.size());
-  const Refined fr = RefineLeastSquares(scorer, final_cols, best.pose, tau, true, independent);
+  const Refined fr = RefineLeastSquares(scorer, final_cols, best.pose, tau, 3, true, independent);
   const Pose4 bp = fr.pose;
   const Eigen::Matrix3d m = CamFromEnuRad(bp.yaw, bp.pitch, bp.roll);
   // Near-field columns count by their distance weight: they neither confirm
