@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "camera/camera.h"
 #include "horizon/horizon.h"
 
 namespace CLI {
@@ -38,7 +39,7 @@ struct RegisterArgs {
   std::string image;
   std::vector<std::string> dem;
   std::optional<double> lat, lon, agl, alt, hfov;
-  std::string sensors, hfov_range, json, overlay;
+  std::string sensors, hfov_range, json, overlay, landmarks;
   double refraction = kDefaultRefraction;
   double max_distance = 100'000.0;
   double step = 0.1;  // finer than `horizon`'s default: each bin holds its maximum, 0.25 deg bins bias pitch
@@ -46,6 +47,36 @@ struct RegisterArgs {
 };
 void AddRegisterCommand(CLI::App& app, RegisterArgs& args);
 int RunRegister(const RegisterArgs& args);
+
+struct OverlayArgs {
+  std::string image, pose, landmarks, output;
+  std::vector<std::string> dem;
+  bool no_ridges = false;
+};
+void AddOverlayCommand(CLI::App& app, OverlayArgs& args);
+int RunOverlay(const OverlayArgs& args);
+
+// A pose as `register --json` writes it.
+struct CameraPoseFile {
+  double lat = 0.0, lon = 0.0, eye_height_m = 0.0;
+  CameraPose pose;
+  int width = 0, height = 0;
+  double focal_px = 0.0;
+};
+CameraPoseFile ReadPoseFile(const std::string& path);
+
+struct RenderArgs {
+  std::vector<std::string> dem;
+  double lat = NAN, lon = NAN;
+  std::optional<double> agl, alt;
+  double azimuth = NAN, pitch = 0.0, roll = 0.0, hfov = 60.0;
+  std::string size = "1024x683", landmarks, panorama, output;
+  double refraction = kDefaultRefraction;
+  bool no_overlay = false;
+};
+void AddRenderCommand(CLI::App& app, RenderArgs& args);
+int RunRender(const RenderArgs& args);
+std::pair<int, int> ParseSize(const std::string& s);
 
 struct DemoArgs {
   std::string output_dir = ".";

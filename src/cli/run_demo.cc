@@ -1,8 +1,10 @@
 // SPDX-License-Identifier: MIT
-// `horizonreg demo`: the main job on built-in data. Until registration and
-// the overlay land, it computes and plots the horizon of a real DEM that a
-// Debian package ships (python-matplotlib-data: Jacksboro fault, Cumberland
-// Mountains, TN, 3 arc-seconds), seen from a valley floor near its centre.
+// `horizonreg demo`: the main job on built-in data, a real DEM that a Debian
+// package ships (python-matplotlib-data: Jacksboro fault, Cumberland
+// Mountains, TN, 3 arc-seconds). From a valley floor near its centre it
+// renders a view at a pose it keeps secret, registers that image with no
+// prior, prints the true and recovered poses side by side and writes the
+// overlay, the horizon chart and the horizon JSON.
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <chrono>
@@ -13,7 +15,12 @@
 #include "cli/commands.h"
 #include "cli/image_io.h"
 #include "cli/output.h"
+#include "match/register.h"
 #include "overlay/horizon_plot.h"
+#include "overlay/overlay.h"
+#include "render/render.h"
+#include "skyline/skyline.h"
+#include "util/angles.h"
 #include "util/errors.h"
 
 namespace horizonreg::cli {
@@ -54,13 +61,46 @@ int RunDemo(const DemoArgs& a) {
   const int col = static_cast<int>(low % g.width), row = static_cast<int>(low / g.width);
   const double lat = g.LatAt(col, row), lon = g.LonAt(col, row);
   HorizonOptions options;
+  options.azimuth_step_deg = 0.1;  // as `register` uses
   const GeodeticPoint observer = ResolveObserver(whole, lat, lon, std::nullopt, std::nullopt);
   const auto t1 = Clock::now();
   const HorizonProfile profile = ComputeHorizon(whole, observer, options);
   const auto t2 = Clock::now();
   const auto ridges = ComputeRidges(whole, observer, options, RidgeOptions{});
+
+  // The secret pose: the camera points where the horizon has the most relief
+  // (as a photographer would), horizon in the upper part of the frame, a
+  // little roll. Nothing of it is passed to the registration below.
+  const int w = 1024, h = 683;
+  const double hfov = 50.0;
+  double best_az = 0.0, best_relief = -1.0, best_mean = 0.0;
+  for (double az = 0.0; az < 360.0; az += 2.0) {
+    double sum = 0.0, sum2 = 0.0;
+    int n = 0;
+    for (double d = -hfov / 2; d <= hfov / 2; d += options.azimuth_step_deg) {
+      const double e = profile.ElevationAtDeg(WrapAzimuthDeg(az + d));
+      sum += e, sum2 += e * e, ++n;
+    }
+    const double mean = sum / n, relief = std::sqrt(std::max(0.0, sum2 / n - mean * mean));
+    if (relief > best_relief) best_relief = relief, best_az = az, best_mean = mean;
+  }
+  const double vfov = 2.0 * RadToDeg(std::atan(std::tan(DegToRad(hfov / 2)) * h / w));
+  const CameraPose secret{WrapAzimuthDeg(best_az + 3.7), best_mean - 0.12 * vfov, 1.4};
+  const CameraIntrinsics k = CameraIntrinsics::FromHfov(w, h, hfov);
+  RenderOptions ro;
+  const cv::Mat view = RenderView(whole, observer, secret, k, ro);
+  const std::string view_path = (std::filesystem::path(a.output_dir) / "demo_view.jpg").string();
+  WriteImage(view_path, view);
   const auto t3 = Clock::now();
 
+  // Register the rendered photo as a user's photo: from the file, no prior.
+  const cv::Mat photo = ReadImage(view_path);
+  const Skyline skyline = ExtractSkyline(photo, SkylineOptions{});
+  const auto t4 = Clock::now();
+  const Registration r = Register(skyline, profile, RegistrationOptions{});
+  const auto t5 = Clock::now();
+
+  const std::string overlay_path = (std::filesystem::path(a.output_dir) / "demo_overlay.png").string();
   const std::string json_path = (std::filesystem::path(a.output_dir) / "demo_horizon.json").string();
   const std::string png_path = (std::filesystem::path(a.output_dir) / "demo_horizon.png").string();
   WriteOutput(json_path, HorizonToJson(profile, ridges));
@@ -71,25 +111,39 @@ int RunDemo(const DemoArgs& a) {
   po.title = title;
   WriteImage(png_path, PlotHorizon(profile, ridges, po));
 
-  int hi = 0, valid = 0;
-  size_t ridge_points = 0;
-  for (int i = 0; i < profile.size(); ++i) {
-    if (!std::isfinite(profile.elevation_deg[i])) continue;
-    ++valid;
-    ridge_points += ridges[i].size();
-    if (!(profile.elevation_deg[i] <= profile.elevation_deg[hi])) hi = i;
-  }
   auto ms = [](auto d) { return std::chrono::duration<double, std::milli>(d).count(); };
   std::printf("horizonreg demo: DEM %s (%d x %d posts)\n", dem.c_str(), g.width, g.height);
   std::printf("  observer      %.6f, %.6f, ground %.1f m, eye %.1f m\n", lat, lon,
               whole.HeightAt(lat, lon).value_or(NAN), observer.height_m);
-  std::printf("  horizon       %d bins of %.2f deg, %d with terrain, %zu inner ridge points\n", profile.size(),
-              profile.azimuth_step_deg, valid, ridge_points);
-  std::printf("  highest       azimuth %.2f deg, elevation %.3f deg, %.1f km away\n", profile.AzimuthDeg(hi),
-              profile.elevation_deg[hi], profile.distance_m[hi] / 1000.0);
-  std::printf("  timing        load %.1f ms, horizon %.1f ms, ridges %.1f ms\n", ms(t1 - t0), ms(t2 - t1), ms(t3 - t2));
-  std::printf("  wrote         %s\n                %s\n", png_path.c_str(), json_path.c_str());
-  return 0;
+  std::printf("  photo         %s: %d x %d, rendered from the DEM at a pose kept secret from the registration\n",
+              view_path.c_str(), w, h);
+  std::printf("  skyline       %d of %d columns\n", skyline.VisibleCount(), w);
+  std::printf("                 %10s %10s %10s %10s\n", "azimuth", "pitch", "roll", "hfov");
+  std::printf("  secret pose   %10.3f %10.3f %10.3f %10.3f\n", secret.azimuth_deg, secret.pitch_deg, secret.roll_deg,
+              hfov);
+  bool ok = r.registered;
+  if (r.registered) {
+    const double daz = AngDiffDeg(r.pose.azimuth_deg, secret.azimuth_deg), dp = r.pose.pitch_deg - secret.pitch_deg,
+                 dr = r.pose.roll_deg - secret.roll_deg, dh = r.hfov_deg - hfov;
+    std::printf("  recovered     %10.3f %10.3f %10.3f %10.3f   (rms %.2f px, %d hypotheses)\n", r.pose.azimuth_deg,
+                r.pose.pitch_deg, r.pose.roll_deg, r.hfov_deg, r.rms_px, r.hypotheses);
+    std::printf("  error         %10.3f %10.3f %10.3f %10.3f\n", daz, dp, dr, dh);
+    ok = std::abs(daz) <= 0.3 && std::abs(dp) <= 0.3 && std::abs(dr) <= 0.3;
+    OverlayOptions oo;
+    oo.eye_height_m = kDefaultEyeHeightM;
+    oo.caption = "demo: registered from the image alone (no compass, no calibration)";
+    WriteImage(overlay_path,
+               DrawOverlay(photo, r.pose, r.Intrinsics(w, h), {&profile, &ridges, SummitsFromHorizon(profile)}, oo).image);
+  } else {
+    std::printf("  recovered     no match: %s\n", r.message.c_str());
+  }
+  std::printf("  timing        load %.0f ms, horizon %.0f ms, render %.0f ms, skyline %.0f ms, match %.1f ms\n",
+              ms(t1 - t0), ms(t2 - t1), ms(t3 - t2), ms(t4 - t3), ms(t5 - t4));
+  std::printf("  wrote         %s\n                %s\n                %s\n", r.registered ? overlay_path.c_str() : "",
+              png_path.c_str(), json_path.c_str());
+  std::printf("  result        %s\n", ok ? "PASS: recovered pose within 0.3 deg of the secret one"
+                                         : "FAIL: the registration missed the secret pose");
+  return ok ? 0 : 1;
 }
 
 }  // namespace horizonreg::cli

@@ -11,7 +11,10 @@
 #include "cli/image_io.h"
 #include "cli/output.h"
 #include "match/register.h"
-#include "overlay/registration_overlay.h"
+#include "cli/site.h"
+#include "overlay/overlay.h"
+#include "skyline/skyline.h"
+#include <opencv2/imgproc.hpp>
 #include "sensors/sensors.h"
 #include "util/angles.h"
 #include "util/errors.h"
@@ -36,7 +39,8 @@ void AddRegisterCommand(CLI::App& app, RegisterArgs& a) {
   c->add_option("--max-distance", a.max_distance, "Terrain farther than this is ignored, metres")->capture_default_str();
   c->add_flag("--no-exif", a.no_exif, "Ignore the photo's EXIF (GPS, focal length, direction)");
   c->add_option("--json", a.json, "Write the JSON here instead of stdout");
-  c->add_option("--overlay", a.overlay, "Draw the DEM horizon at the recovered pose over the photo into this PNG");
+  c->add_option("--overlay", a.overlay, "Draw the overlay at the recovered pose over the photo into this PNG");
+  c->add_option("--landmarks", a.landmarks, "Named peaks for the overlay labels (GeoJSON or CSV)");
 }
 
 namespace {
@@ -121,11 +125,10 @@ int RunRegister(const RegisterArgs& a) {
   });
   const auto h0 = Clock::now();
   HorizonProfile profile;
+  std::optional<Site> site;
   try {
-    const Terrain terrain(a.dem);
-    const TerrainWindow window = terrain.ReadWindow({*lat, *lon, 0.0}, ho.max_distance_m);
-    const GeodeticPoint observer = ResolveObserver(window, *lat, *lon, agl, alt);
-    profile = ComputeHorizon(window, observer, ho);
+    site = LoadSite(a.dem, *lat, *lon, agl, alt, ho.max_distance_m);
+    profile = ComputeHorizon(site->window, site->observer, ho);
   } catch (...) {
     skyline_job.wait();
     throw;
@@ -176,16 +179,26 @@ int RunRegister(const RegisterArgs& a) {
     std::ostringstream caption;
     caption.precision(2);
     caption << std::fixed;
-    if (r.registered)
-      caption << "az " << r.pose.azimuth_deg << "  pitch " << r.pose.pitch_deg << "  roll " << r.pose.roll_deg
-              << "  hfov " << r.hfov_deg << "  rms " << r.rms_px << " px";
-    else
+    cv::Mat drawn;
+    if (r.registered) {
+      caption << "registered: rms " << r.rms_px << " px, sigma az " << r.azimuth_sigma_deg << " pitch "
+              << r.pitch_sigma_deg << " deg";
+      OverlayOptions oo;
+      oo.caption = caption.str();
+      oo.eye_height_m = std::max(0.1, site->observer.height_m - site->window.HeightAt(*lat, *lon).value_or(0.0));
+      const auto ridges = ComputeRidges(site->window, site->observer, ho, RidgeOptions{});
+      drawn = DrawOverlay(image, r.pose, r.Intrinsics(image.cols, image.rows),
+                          {&profile, &ridges, OverlayLandmarks(*site, profile, a.landmarks, ho.refraction)}, oo)
+                  .image;
+    } else {
       caption << "no match: " << r.message;
-    const cv::Mat drawn =
-        r.registered ? DrawHorizonCheck(image, profile, r.pose, r.Intrinsics(image.cols, image.rows), skyline.y,
-                                        caption.str())
-                     : DrawHorizonCheck(image, HorizonProfile{}, {}, CameraIntrinsics::FromHfov(image.cols, image.rows, 60),
-                                        skyline.y, caption.str());
+      drawn = DrawSkylineDebug(image, skyline);
+      const double s = std::max(0.6, image.cols / 1000.0);
+      cv::putText(drawn, caption.str(), {static_cast<int>(10 * s), static_cast<int>(30 * s)}, cv::FONT_HERSHEY_SIMPLEX,
+                  0.6 * s, cv::Scalar(0, 0, 0), static_cast<int>(4 * s), cv::LINE_AA);
+      cv::putText(drawn, caption.str(), {static_cast<int>(10 * s), static_cast<int>(30 * s)}, cv::FONT_HERSHEY_SIMPLEX,
+                  0.6 * s, cv::Scalar(255, 255, 255), std::max(1, static_cast<int>(1.5 * s)), cv::LINE_AA);
+    }
     WriteImage(a.overlay, drawn);
   }
   j["timing_ms"] = {{"horizon", Rounded(horizon_ms, 1)},

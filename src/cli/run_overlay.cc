@@ -1,0 +1,80 @@
+// SPDX-License-Identifier: MIT
+// `horizonreg overlay`: the AR overlay over a photo at a registered pose.
+#include <CLI/CLI.hpp>
+#include <fstream>
+#include <nlohmann/json.hpp>
+
+#include "cli/commands.h"
+#include "cli/image_io.h"
+#include "cli/site.h"
+#include "overlay/overlay.h"
+#include "util/errors.h"
+
+namespace horizonreg::cli {
+
+void AddOverlayCommand(CLI::App& app, OverlayArgs& a) {
+  CLI::App* c = app.add_subcommand("overlay", "Draw the AR overlay over a photo at a pose (register --json output)");
+  c->add_option("image", a.image, "Photo (JPEG, PNG, ...)")->required();
+  c->add_option("--pose", a.pose, "Pose JSON as `register --json` writes it")->required();
+  c->add_option("--dem", a.dem, "DEM file(s), any GDAL format")->required();
+  c->add_option("--landmarks", a.landmarks, "Named peaks: GeoJSON points (name, ele) or CSV name,lat,lon[,ele]");
+  c->add_option("-o,--output", a.output, "Output PNG")->required();
+  c->add_flag("--no-ridges", a.no_ridges, "Do not draw the inner ridge lines");
+}
+
+namespace {
+
+double Number(const nlohmann::json& j, const char* key, const std::string& path) {
+  if (!j.contains(key) || !j[key].is_number())
+    throw InvalidArgument("pose: '" + path + "' has no number '" + key + "'");
+  return j[key].get<double>();
+}
+
+}  // namespace
+
+CameraPoseFile ReadPoseFile(const std::string& path) {
+  std::ifstream f(path);
+  if (!f) throw IoError("pose: cannot open '" + path + "'");
+  nlohmann::json j;
+  try {
+    j = nlohmann::json::parse(f);
+  } catch (const nlohmann::json::exception& e) {
+    throw InvalidArgument("pose: '" + path + "' is not valid JSON (" + e.what() + ")");
+  }
+  if (j.value("status", "registered") != "registered")
+    throw InvalidArgument("pose: '" + path + "' holds no pose (status " + j.value("status", "") + ")");
+  if (!j.contains("observer") || !j["observer"].is_object())
+    throw InvalidArgument("pose: '" + path + "' has no observer");
+  CameraPoseFile p;
+  p.lat = Number(j["observer"], "lat", path);
+  p.lon = Number(j["observer"], "lon", path);
+  p.eye_height_m = Number(j["observer"], "eye_height_m", path);
+  p.pose = {Number(j, "azimuth_deg", path), Number(j, "pitch_deg", path), Number(j, "roll_deg", path)};
+  p.width = static_cast<int>(Number(j, "width", path));
+  p.height = static_cast<int>(Number(j, "height", path));
+  p.focal_px = Number(j, "focal_px", path);
+  if (!(p.focal_px > 0) || p.width < 1 || p.height < 1)
+    throw InvalidArgument("pose: '" + path + "' has an invalid focal_px, width or height");
+  return p;
+}
+
+int RunOverlay(const OverlayArgs& a) {
+  const CameraPoseFile p = ReadPoseFile(a.pose);
+  const cv::Mat image = ReadImage(a.image);
+  CameraIntrinsics k = CameraIntrinsics::FromHfov(image.cols, image.rows, 60.0);
+  k.focal_px = p.focal_px * image.cols / p.width;  // the photo may be a resized copy
+  const Site site = LoadSite(a.dem, p.lat, p.lon, std::nullopt, p.eye_height_m, 100'000.0);
+  HorizonOptions ho;
+  ho.azimuth_step_deg = 0.1;
+  const HorizonProfile horizon = ComputeHorizon(site.window, site.observer, ho);
+  std::vector<std::vector<Ridge>> ridges;
+  if (!a.no_ridges) ridges = ComputeRidges(site.window, site.observer, ho, RidgeOptions{});
+  OverlayInput in{&horizon, a.no_ridges ? nullptr : &ridges,
+                  OverlayLandmarks(site, horizon, a.landmarks, ho.refraction)};
+  OverlayOptions o;
+  o.eye_height_m = std::max(0.1, site.observer.height_m - site.window.HeightAt(p.lat, p.lon).value_or(0.0));
+  WriteImage(a.output, DrawOverlay(image, p.pose, k, in, o).image);
+  return 0;
+}
+
+}  // namespace horizonreg::cli

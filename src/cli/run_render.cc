@@ -1,0 +1,103 @@
+// SPDX-License-Identifier: MIT
+// `horizonreg render`: the predicted view of the terrain for a pose, with the
+// overlay, and optionally a 360-degree panorama.
+#include <CLI/CLI.hpp>
+#include <algorithm>
+#include <opencv2/imgproc.hpp>
+
+#include "cli/commands.h"
+#include "cli/image_io.h"
+#include "cli/site.h"
+#include "overlay/overlay.h"
+#include "render/render.h"
+#include "util/angles.h"
+#include "util/errors.h"
+
+namespace horizonreg::cli {
+
+void AddRenderCommand(CLI::App& app, RenderArgs& a) {
+  CLI::App* c = app.add_subcommand("render", "Render the predicted view of the terrain for a pose");
+  c->add_option("--dem", a.dem, "DEM file(s), any GDAL format")->required();
+  c->add_option("--lat", a.lat, "Camera latitude, degrees")->required();
+  c->add_option("--lon", a.lon, "Camera longitude, degrees")->required();
+  auto* agl = c->add_option("--agl", a.agl, "Eye height above the ground, metres (default 1.7)");
+  c->add_option("--alt", a.alt, "Eye altitude above the ellipsoid, metres")->excludes(agl);
+  c->add_option("--azimuth", a.azimuth, "Camera azimuth, degrees clockwise from north")->required();
+  c->add_option("--pitch", a.pitch, "Camera pitch, degrees up")->capture_default_str();
+  c->add_option("--roll", a.roll, "Camera roll, degrees (right side down)")->capture_default_str();
+  c->add_option("--hfov", a.hfov, "Horizontal opening angle, degrees")->capture_default_str();
+  c->add_option("--size", a.size, "Image size WxH")->capture_default_str();
+  c->add_option("--landmarks", a.landmarks, "Named peaks for the labels (GeoJSON or CSV)");
+  c->add_flag("--no-overlay", a.no_overlay, "The terrain only, without the overlay");
+  c->add_option("--panorama", a.panorama, "Also write a 360-degree panorama PNG here");
+  c->add_option("--refraction", a.refraction, "Refraction coefficient k")->capture_default_str();
+  c->add_option("-o,--output", a.output, "Output PNG")->required();
+}
+
+std::pair<int, int> ParseSize(const std::string& s) {
+  int w = 0, h = 0;
+  char x = 0, extra = 0;
+  if (std::sscanf(s.c_str(), "%d%c%d%c", &w, &x, &h, &extra) != 3 || (x != 'x' && x != 'X') || w < 8 || h < 8 ||
+      w > 20000 || h > 20000)
+    throw InvalidArgument("--size '" + s + "': expected WxH, each 8 to 20000, e.g. 1024x683");
+  return {w, h};
+}
+
+int RunRender(const RenderArgs& a) {
+  const auto [w, h] = ParseSize(a.size);
+  if (!(a.hfov > 0 && a.hfov < 170)) throw InvalidArgument("--hfov must be in (0, 170) degrees");
+  if (!(std::abs(a.pitch) <= 90)) throw InvalidArgument("--pitch must be within [-90, 90]");
+  if (!std::isfinite(a.azimuth) || !std::isfinite(a.roll)) throw InvalidArgument("--azimuth and --roll must be finite");
+  RenderOptions ro;
+  ro.refraction = a.refraction;
+  ro.Check();
+  const Site site = LoadSite(a.dem, a.lat, a.lon, a.agl, a.alt, ro.max_distance_m);
+  const CameraPose pose{WrapAzimuthDeg(a.azimuth), a.pitch, a.roll};
+  const CameraIntrinsics k = CameraIntrinsics::FromHfov(w, h, a.hfov);
+  cv::Mat view = RenderView(site.window, site.observer, pose, k, ro);
+  HorizonOptions ho;
+  ho.azimuth_step_deg = 0.1;
+  ho.refraction = a.refraction;
+  const HorizonProfile horizon = ComputeHorizon(site.window, site.observer, ho);
+  const auto landmarks = OverlayLandmarks(site, horizon, a.landmarks, a.refraction);
+  if (!a.no_overlay) {
+    const auto ridges = ComputeRidges(site.window, site.observer, ho, RidgeOptions{});
+    OverlayOptions o;
+    o.eye_height_m = std::max(0.1, site.observer.height_m - site.window.HeightAt(a.lat, a.lon).value_or(0.0));
+    o.caption = "predicted view (DEM render)";
+    view = DrawOverlay(view, pose, k, {&horizon, &ridges, landmarks}, o).image;
+  }
+  if (!a.panorama.empty()) {
+    const auto [lo, hi] = std::minmax_element(horizon.elevation_deg.begin(), horizon.elevation_deg.end());
+    const double min_el = std::max(-60.0, *lo - 3.0), max_el = std::min(80.0, *hi + 4.0);
+    const int pw = 3600, ph = std::clamp(static_cast<int>(std::lround((max_el - min_el) * 10.0)), 120, 1800);
+    cv::Mat pano = RenderPanorama(site.window, site.observer, pw, ph, min_el, max_el, ro);
+    const double scale = 1.6;
+    for (int az = 0; az < 360; az += 15) {
+      const int x = static_cast<int>(az * pw / 360.0);
+      cv::line(pano, {x, 0}, {x, static_cast<int>(12 * scale)}, cv::Scalar(255, 255, 255), 2);
+      static const char* kNames[] = {"N", "NE", "E", "SE", "S", "SW", "W", "NW"};
+      const std::string label = az % 45 == 0 ? kNames[az / 45] : std::to_string(az);
+      cv::putText(pano, label, {x + 4, static_cast<int>(30 * scale)}, cv::FONT_HERSHEY_SIMPLEX, 0.5 * scale,
+                  cv::Scalar(40, 40, 40), 4, cv::LINE_AA);
+      cv::putText(pano, label, {x + 4, static_cast<int>(30 * scale)}, cv::FONT_HERSHEY_SIMPLEX, 0.5 * scale,
+                  cv::Scalar(255, 255, 255), 1, cv::LINE_AA);
+    }
+    for (const ResolvedLandmark& l : landmarks) {
+      if (!l.visible) continue;
+      const int x = static_cast<int>(l.azimuth_deg * pw / 360.0);
+      const int y = static_cast<int>((max_el - l.elevation_deg) / (max_el - min_el) * ph);
+      cv::circle(pano, {x, y}, 4, cv::Scalar(0, 0, 255), cv::FILLED, cv::LINE_AA);
+      const std::string text = l.name.empty() ? std::to_string(static_cast<int>(l.height_m)) + " m" : l.name;
+      cv::putText(pano, text, {x + 6, y - 8}, cv::FONT_HERSHEY_SIMPLEX, 0.45 * scale, cv::Scalar(40, 40, 40), 4,
+                  cv::LINE_AA);
+      cv::putText(pano, text, {x + 6, y - 8}, cv::FONT_HERSHEY_SIMPLEX, 0.45 * scale, cv::Scalar(255, 255, 255), 1,
+                  cv::LINE_AA);
+    }
+    WriteImage(a.panorama, pano);
+  }
+  WriteImage(a.output, view);
+  return 0;
+}
+
+}  // namespace horizonreg::cli
