@@ -26,6 +26,8 @@ test: test-deps build
 
 bench: build
 	$(BUILD)/horizon_bench
+	$(BUILD)/skyline_bench
+	$(BUILD)/register_bench
 	scripts/bench_process.sh $(BUILD)/horizonreg
 
 asan: test-deps

@@ -157,6 +157,19 @@ PY
     "$bin" register "$work/grey.png" --dem "$shared/dem/zion_srtm.tif" --lat 37.26 --lon -112.97 > "$work/g.json" \
       && grep -q '"status": "no_match"' "$work/g.json" && ok "uniform image: no_match, exit 0" || bad "uniform image register"
   fi
+  # overlay and render
+  "$bin" overlay "$sc/zion_01.jpg" --pose "$work/r.json" --dem "$shared/dem/zion_srtm.tif" \
+    --landmarks "$shared/landmarks/zion.geojson" -o "$work/ov.png" \
+    && file "$work/ov.png" | grep -q "PNG image data, 1024 x 683" && ok "overlay from a register pose" || bad "overlay"
+  expect_exit2 "overlay with a no_match pose" overlay "$sc/zion_01.jpg" --pose "$work/fog.json" --dem "$shared/dem/zion_srtm.tif" -o "$work/out.png"
+  echo 'name,lat,lon' > "$work/bad.csv"; echo 'X,95,10' >> "$work/bad.csv"
+  expect_exit2 "overlay bad landmarks" overlay "$sc/zion_01.jpg" --pose "$work/r.json" --dem "$shared/dem/zion_srtm.tif" --landmarks "$work/bad.csv" -o "$work/out.png"
+  "$bin" render --dem "$shared/dem/zion_srtm.tif" --lat 37.368515 --lon -113.161021 --azimuth 312 --hfov 40 \
+    --size 640x400 -o "$work/rv.png" --panorama "$work/pano.png" \
+    && file "$work/rv.png" | grep -q "PNG image data, 640 x 400" && file "$work/pano.png" | grep -q "PNG image data, 3600 x" \
+    && ok "render view and panorama" || bad "render"
+  expect_exit2 "render bad --size" render --dem "$shared/dem/zion_srtm.tif" --lat 37.37 --lon -113.16 --azimuth 0 --size 640 -o "$work/out.png"
+  expect_exit2 "render pitch 100" render --dem "$shared/dem/zion_srtm.tif" --lat 37.37 --lon -113.16 --azimuth 0 --pitch 100 -o "$work/out.png"
 else
   echo "SKIPPED: register dev-scene cases need ../shared"
 fi

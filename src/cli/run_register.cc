@@ -177,7 +177,7 @@ int RunRegister(const RegisterArgs& a) {
 
   if (!a.overlay.empty()) {
     std::ostringstream caption;
-    caption.precision(2);
+    caption.precision(3);
     caption << std::fixed;
     cv::Mat drawn;
     if (r.registered) {

@@ -183,6 +183,8 @@ OverlayResult DrawOverlay(const cv::Mat& image, const CameraPose& pose, const Ca
     }
   }
 
+  std::vector<cv::Rect> occupied;
+  const int tape_y = static_cast<int>(std::lround(0.045 * k.height + 18 * scale));
   // Artificial horizon (0 deg elevation) and the vertical axis through the image centre.
   if (o.artificial_horizon) {
     std::vector<std::pair<double, double>> pts;
@@ -201,15 +203,13 @@ OverlayResult DrawOverlay(const cv::Mat& image, const CameraPose& pose, const Ca
       if (!q) continue;
       const Eigen::Vector2d dir = (*q - *p).normalized() * (e % 10 == 0 ? 12.0 : 6.0) * scale;
       c.Line(*p - dir, *p + dir, cv::Scalar(0, 255, 255), thin);
-      if (e % 10 == 0)
+      if (e % 10 == 0 && p->y() > tape_y + 20 * scale && p->y() < k.height - 40 * scale)
         c.Text(std::to_string(e), cv::Point(static_cast<int>(p->x() + 15 * scale), static_cast<int>(p->y() + 5 * scale)),
                0.8 * font, cv::Scalar(0, 255, 255));
     }
   }
 
   // Compass tape: ticks along the top of the image at the elevation seen there.
-  std::vector<cv::Rect> occupied;
-  const int tape_y = static_cast<int>(std::lround(0.045 * k.height + 18 * scale));
   if (o.compass) {
     const AzEl top = AzElFromEnu(UnprojectToEnu(m, k, {k.width / 2.0, static_cast<double>(tape_y)}));
     const double span = hi - lo;
