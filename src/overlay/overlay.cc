@@ -214,7 +214,7 @@ OverlayResult DrawOverlay(const cv::Mat& image, const CameraPose& pose, const Ca
     const AzEl top = AzElFromEnu(UnprojectToEnu(m, k, {k.width / 2.0, static_cast<double>(tape_y)}));
     const double span = hi - lo;
     const int minor = span > 90 ? 5 : (span > 30 ? 1 : 1);
-    const int major = span > 90 ? 45 : (span > 30 ? 10 : 5);
+    const int major = span > 90 ? 15 : (span > 30 ? 10 : 5);
     for (int a = static_cast<int>(std::floor(pose.azimuth_deg + lo)); a <= pose.azimuth_deg + hi; ++a) {
       if (a % minor != 0) continue;
       const int az = ((a % 360) + 360) % 360;
