@@ -3,6 +3,7 @@
 
 #include <ceres/ceres.h>
 #include <ceres/dynamic_autodiff_cost_function.h>
+#include <ceres/manifold.h>
 
 #include <algorithm>
 #include <cmath>
@@ -250,7 +251,7 @@ struct Refined {
 // Levenberg-Marquardt (Ceres) inside iteratively reweighted least squares
 // with the Cauchy loss of scale tau / 3.
 Refined RefineLeastSquares(const Scorer& scorer, const std::vector<Column>& cols, const Pose4& start, double tau,
-                           int rounds, bool want_covariance, double effective_fraction) {
+                           int rounds, bool want_covariance, double effective_fraction, bool fix_focal = false) {
   double p[4] = {start.yaw, start.pitch, start.roll, start.f};
   const double c2 = std::pow(tau / 3.0, 2);
   std::vector<double> sqrt_w(cols.size(), 1.0);
@@ -268,8 +269,12 @@ Refined RefineLeastSquares(const Scorer& scorer, const std::vector<Column>& cols
   cost->SetNumResiduals(static_cast<int>(cols.size()));
   ceres::Problem problem;
   problem.AddResidualBlock(cost, nullptr, p);
-  problem.SetParameterLowerBound(p, 3, 0.2 * start.f);
-  problem.SetParameterUpperBound(p, 3, 5.0 * start.f);
+  if (fix_focal) {
+    problem.SetManifold(p, new ceres::SubsetManifold(4, {3}));
+  } else {
+    problem.SetParameterLowerBound(p, 3, 0.2 * start.f);
+    problem.SetParameterUpperBound(p, 3, 5.0 * start.f);
+  }
   ceres::Solver::Options so;
   so.linear_solver_type = ceres::DENSE_QR;
   so.max_num_iterations = 10;
@@ -448,6 +453,52 @@ std::pair<double, double> RayCosineRange(const ImagePoint& p1, const ImagePoint&
   }
   const double margin = 0.02 * (hi - lo) + 1e-9;
   return {lo - margin, hi + margin};
+}
+
+// Final robust fit from `start` with covariance, then the statistics and the
+// acceptance tests (the ambiguity ratio must already be in `out`).
+void FinishRegistration(const Scorer& scorer, std::vector<Column>& all, const Pose4& start, int width, double step,
+                        double tau, double px_scale, bool fix_focal, const RegistrationOptions& options,
+                        Registration& out) {
+  scorer.Reweight(start, all);
+  const std::vector<Column> final_cols = Subsample(all, options.refine_columns);
+  const double hfov_rad = 2.0 * std::atan(0.5 * width / start.f);
+  const double independent = std::min(1.0, RadToDeg(hfov_rad) / step / final_cols.size());
+  const Refined fr = RefineLeastSquares(scorer, final_cols, start, tau, 3, true, independent, fix_focal);
+  const Pose4 bp = fr.pose;
+  const Eigen::Matrix3d m = CamFromEnuRad(bp.yaw, bp.pitch, bp.roll);
+  // Near-field columns count by their distance weight: they neither confirm
+  // nor refute a pose much.
+  scorer.Reweight(bp, all);
+  double ss = 0.0, w_in = 0.0, w_all = 0.0;
+  for (const Column& c : all) {
+    const double r = scorer.Residual(m, bp.f, c);
+    const double w = c.fit_weight / c.weight;
+    w_all += w;
+    if (std::abs(r) < tau) {
+      ss += w * r * r;
+      w_in += w;
+    }
+  }
+  out.pose = bp.ToPose();
+  out.focal_px = bp.f;
+  out.hfov_deg = RadToDeg(2.0 * std::atan(0.5 * width / bp.f));
+  out.inlier_fraction = w_all > 0 ? w_in / w_all : 0.0;
+  out.rms_px = w_in > 0 ? std::sqrt(ss / w_in) : NAN;
+  out.azimuth_sigma_deg = RadToDeg(fr.sigma[0]);
+  out.pitch_sigma_deg = RadToDeg(fr.sigma[1]);
+  out.roll_sigma_deg = RadToDeg(fr.sigma[2]);
+  out.focal_sigma_px = fr.sigma[3];
+  std::ostringstream why;
+  if (out.inlier_fraction < options.min_inlier_fraction)
+    why << "only " << std::lround(100 * out.inlier_fraction) << "% of the skyline fits the DEM horizon";
+  else if (!(out.rms_px <= options.max_rms_px * px_scale))
+    why << "residual " << out.rms_px << " px too large";
+  else if (out.ambiguity_ratio < options.min_ambiguity_ratio)
+    why << "ambiguous: another pose fits almost as well (cost ratio " << out.ambiguity_ratio << ")";
+  out.message = why.str();
+  out.registered = out.message.empty();
+  if (out.registered) out.message = "registered";
 }
 
 }  // namespace
@@ -650,50 +701,36 @@ Registration Register(const Skyline& skyline, const HorizonProfile& horizon, con
       break;
     }
 
-  // Final statistics at the best pose, with covariance.
-  scorer.Reweight(best.pose, all);
-  const std::vector<Column> final_cols = Subsample(all, options.refine_columns);
-  const double hfov_rad = 2.0 * std::atan(0.5 * width / best.pose.f);
-  const double independent = std::min(1.0, RadToDeg(hfov_rad) / step / final_cols.size());
-  const Refined fr = RefineLeastSquares(scorer, final_cols, best.pose, tau, 3, true, independent);
-  const Pose4 bp = fr.pose;
-  const Eigen::Matrix3d m = CamFromEnuRad(bp.yaw, bp.pitch, bp.roll);
-  // Near-field columns count by their distance weight: they neither confirm
-  // nor refute a pose much.
-  scorer.Reweight(bp, all);
-  double ss = 0.0, w_in = 0.0, w_all = 0.0;
-  for (const Column& c : all) {
-    const double r = scorer.Residual(m, bp.f, c);
-    const double w = c.fit_weight / c.weight;
-    w_all += w;
-    if (std::abs(r) < tau) {
-      ss += w * r * r;
-      w_in += w;
-    }
-  }
-  out.pose = bp.ToPose();
-  out.focal_px = bp.f;
-  out.hfov_deg = RadToDeg(2.0 * std::atan(0.5 * width / bp.f));
-  out.inlier_fraction = w_all > 0 ? w_in / w_all : 0.0;
-  out.rms_px = w_in > 0 ? std::sqrt(ss / w_in) : NAN;
   out.ambiguity_ratio = second / std::max(best.cost, 1e-9 * scorer.tau2());
-  out.azimuth_sigma_deg = RadToDeg(fr.sigma[0]);
-  out.pitch_sigma_deg = RadToDeg(fr.sigma[1]);
-  out.roll_sigma_deg = RadToDeg(fr.sigma[2]);
-  out.focal_sigma_px = fr.sigma[3];
   out.ex_px = corrections[order[0]].ex_px;
   out.ey_px = corrections[order[0]].ey_px;
+  FinishRegistration(scorer, all, best.pose, width, step, tau, px_scale, false, options, out);
+  return out;
+}
 
-  std::ostringstream why;
-  if (out.inlier_fraction < options.min_inlier_fraction)
-    why << "only " << std::lround(100 * out.inlier_fraction) << "% of the skyline fits the DEM horizon";
-  else if (!(out.rms_px <= options.max_rms_px * px_scale))
-    why << "residual " << out.rms_px << " px too large";
-  else if (out.ambiguity_ratio < options.min_ambiguity_ratio)
-    why << "ambiguous: another pose fits almost as well (cost ratio " << out.ambiguity_ratio << ")";
-  out.message = why.str();
-  out.registered = out.message.empty();
-  if (out.registered) out.message = "registered";
+Registration RefinePose(const Skyline& skyline, const HorizonProfile& horizon, const CameraPose& start, double focal_px,
+                        bool fix_focal, const RegistrationOptions& options) {
+  options.Check();
+  if (skyline.width < 1 || static_cast<int>(skyline.y.size()) != skyline.width)
+    throw InvalidArgument("RefinePose: skyline has no columns or y.size() != width");
+  if (horizon.size() < 8) throw InvalidArgument("RefinePose: horizon profile has fewer than 8 bins");
+  if (!(focal_px > 0.0)) throw InvalidArgument("RefinePose: focal_px must be > 0");
+  const int width = skyline.width;
+  const double px_scale = std::max(1.0, width / 1000.0);
+  const double tau = options.inlier_px * px_scale;
+  Registration out;
+  std::vector<Column> all;
+  for (int i = 0; i < width; ++i)
+    if (std::isfinite(skyline.y[i])) all.push_back({i + 0.5, skyline.y[i], 1.0});
+  if (static_cast<double>(all.size()) / width < options.min_visible_fraction || all.size() < 8) {
+    out.message = "too little skyline visible";
+    return out;
+  }
+  const HorizonLookup lookup(horizon);
+  const Scorer scorer(lookup, width / 2.0, skyline.height / 2.0, tau);
+  out.ambiguity_ratio = INFINITY;  // not searched: the start pose is given
+  FinishRegistration(scorer, all, Pose4::From(start, focal_px), width, horizon.azimuth_step_deg, tau, px_scale,
+                     fix_focal, options, out);
   return out;
 }
 

@@ -78,6 +78,14 @@ struct Registration {
 // Thread-safe.
 Registration Register(const Skyline& skyline, const HorizonProfile& horizon, const RegistrationOptions& options);
 
+// Tracking: refines a pose known approximately (the previous frame's, within
+// a few pixels) against the skyline, without any hypothesis search: the same
+// robust least squares, statistics and acceptance tests as Register (no
+// ambiguity test: nothing else was searched). `fix_focal` keeps focal_px.
+// Throws InvalidArgument for bad options or inputs. Thread-safe.
+Registration RefinePose(const Skyline& skyline, const HorizonProfile& horizon, const CameraPose& start, double focal_px,
+                        bool fix_focal, const RegistrationOptions& options);
+
 // Signed pixel distance from the image point (x, y) to the horizon projected
 // with `pose` and focal `focal_px` (principal point at the centre of a
 // width x height image), measured across the projected silhouette: positive

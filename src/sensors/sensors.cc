@@ -1,7 +1,9 @@
 // SPDX-License-Identifier: MIT
 #include "sensors/sensors.h"
 
+#include <array>
 #include <cmath>
+#include <cstdio>
 #include <exiv2/exiv2.hpp>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -111,6 +113,255 @@ SensorReading ReadExif(const std::string& image_path) {
     return SensorReading{};  // no usable metadata: the caller decides what is missing
   }
   return r;
+}
+
+std::optional<SensorReading> SensorLog::ForFrame(int frame, double fps) const {
+  for (const SensorLogEntry& e : entries)
+    if (e.frame && *e.frame == frame) return e.reading;
+  if (!(fps > 0)) return std::nullopt;
+  const double t = frame / fps;
+  const SensorLogEntry* best = nullptr;
+  for (const SensorLogEntry& e : entries)
+    if (e.time_s && std::abs(*e.time_s - t) <= 0.5 / fps && (!best || std::abs(*e.time_s - t) < std::abs(*best->time_s - t)))
+      best = &e;
+  if (best) return best->reading;
+  return std::nullopt;
+}
+
+namespace {
+
+std::vector<std::string> SplitComma(const std::string& line) {
+  std::vector<std::string> out(1);
+  for (char c : line) {
+    if (c == ',') out.emplace_back();
+    else if (c != '\r' && c != ' ' && c != '\t') out.back() += c;
+  }
+  return out;
+}
+
+std::optional<double> ParseNumber(const std::string& s) {
+  if (s.empty()) return std::nullopt;
+  size_t used = 0;
+  try {
+    const double v = std::stod(s, &used);
+    if (used == s.size()) return v;
+  } catch (const std::exception&) {
+  }
+  return std::nullopt;
+}
+
+}  // namespace
+
+SensorLog ReadSensorLog(const std::string& path) {
+  std::ifstream f(path);
+  if (!f) throw IoError("sensors: cannot open '" + path + "'");
+  std::stringstream ss;
+  ss << f.rdbuf();
+  const std::string text = ss.str();
+  SensorLog log;
+  const auto first = text.find_first_not_of(" \t\r\n");
+  if (first != std::string::npos && text[first] == '[') {
+    nlohmann::json j;
+    try {
+      j = nlohmann::json::parse(text);
+    } catch (const nlohmann::json::exception& e) {
+      throw InvalidArgument("sensors: '" + path + "' is not valid JSON (" + e.what() + ")");
+    }
+    for (size_t i = 0; i < j.size(); ++i) {
+      try {
+        if (!j[i].is_object()) throw InvalidArgument("not an object");
+        SensorLogEntry e;
+        e.reading = ParseSensorJson(j[i].dump(), path);
+        if (j[i].contains("frame") && j[i]["frame"].is_number_integer()) e.frame = j[i]["frame"].get<int>();
+        if (j[i].contains("time_s") && j[i]["time_s"].is_number()) e.time_s = j[i]["time_s"].get<double>();
+        if (!e.frame && !e.time_s) throw InvalidArgument("no frame or time_s");
+        log.entries.push_back(e);
+      } catch (const InvalidArgument& ex) {
+        log.warnings.push_back("sensors: '" + path + "' element " + std::to_string(i) + " skipped: " + ex.what());
+      }
+    }
+  } else {
+    std::istringstream lines(text);
+    std::string line;
+    std::getline(lines, line);
+    const auto header = SplitComma(line);
+    auto col = [&](const char* name) {
+      for (size_t i = 0; i < header.size(); ++i)
+        if (header[i] == name) return static_cast<int>(i);
+      return -1;
+    };
+    const int c_frame = col("frame"), c_time = col("time_s"), c_yaw = col("compass_yaw_deg"),
+              c_pitch = col("inclinometer_pitch_deg"), c_roll = col("inclinometer_roll_deg");
+    if (c_frame < 0 && c_time < 0)
+      throw InvalidArgument("sensors: '" + path + "' has no `frame` or `time_s` column in its header");
+    int number = 1;
+    while (std::getline(lines, line)) {
+      ++number;
+      if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
+      const auto cells = SplitComma(line);
+      auto cell = [&](int c) -> std::optional<double> {
+        if (c < 0) return std::nullopt;
+        if (c >= static_cast<int>(cells.size())) return NAN;
+        if (cells[c].empty()) return std::nullopt;
+        return ParseNumber(cells[c]).value_or(NAN);
+      };
+      const auto frame = cell(c_frame), time = cell(c_time), yaw = cell(c_yaw), pitch = cell(c_pitch),
+                 roll = cell(c_roll);
+      std::string why;
+      if ((frame && !(std::isfinite(*frame) && *frame >= 0 && *frame == std::floor(*frame))) ||
+          (time && !std::isfinite(*time)) || (!frame && !time))
+        why = "bad frame/time";
+      else if (yaw && !(std::isfinite(*yaw) && std::abs(*yaw) <= 720))
+        why = "bad compass_yaw_deg";
+      else if (pitch && !(std::isfinite(*pitch) && std::abs(*pitch) <= 90))
+        why = "bad inclinometer_pitch_deg";
+      else if (roll && !(std::isfinite(*roll) && std::abs(*roll) <= 180))
+        why = "bad inclinometer_roll_deg";
+      if (!why.empty()) {
+        log.warnings.push_back("sensors: '" + path + "' line " + std::to_string(number) + " skipped: " + why);
+        continue;
+      }
+      SensorLogEntry e;
+      if (frame) e.frame = static_cast<int>(*frame);
+      e.time_s = time;
+      if (yaw) e.reading.compass_deg = WrapAzimuthDeg(*yaw);
+      e.reading.pitch_deg = pitch;
+      e.reading.roll_deg = roll;
+      log.entries.push_back(e);
+    }
+  }
+  if (log.entries.empty()) throw InvalidArgument("sensors: '" + path + "' has no usable reading");
+  return log;
+}
+
+SensorReading SensorCalibration::Apply(const SensorReading& raw, double time_s) const {
+  SensorReading r = raw;
+  if (r.compass_deg)
+    r.compass_deg = WrapAzimuthDeg(*r.compass_deg + compass_offset_deg + compass_drift_deg_per_s * (time_s - t0_s));
+  if (r.pitch_deg) r.pitch_deg = *r.pitch_deg + pitch_offset_deg;
+  if (r.roll_deg) r.roll_deg = *r.roll_deg + roll_offset_deg;
+  return r;
+}
+
+void SensorCalibration::Save(const std::string& path) const {
+  nlohmann::json j = {{"compass_offset_deg", compass_offset_deg}, {"compass_drift_deg_per_s", compass_drift_deg_per_s},
+                      {"t0_s", t0_s},
+                      {"pitch_offset_deg", pitch_offset_deg},
+                      {"roll_offset_deg", roll_offset_deg},
+                      {"samples", samples},
+                      {"compass_rms_deg", std::isfinite(compass_rms_deg) ? nlohmann::json(compass_rms_deg) : nullptr},
+                      {"pitch_rms_deg", std::isfinite(pitch_rms_deg) ? nlohmann::json(pitch_rms_deg) : nullptr},
+                      {"roll_rms_deg", std::isfinite(roll_rms_deg) ? nlohmann::json(roll_rms_deg) : nullptr}};
+  const std::string tmp = path + ".tmp";
+  {
+    std::ofstream f(tmp);
+    if (!f || !(f << j.dump(1) << "\n")) throw IoError("sensors: cannot write '" + path + "'");
+  }
+  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
+    std::remove(tmp.c_str());
+    throw IoError("sensors: cannot write '" + path + "'");
+  }
+}
+
+SensorCalibration SensorCalibration::Load(const std::string& path) {
+  std::ifstream f(path);
+  if (!f) throw IoError("sensors: cannot open calibration '" + path + "'");
+  nlohmann::json j;
+  try {
+    j = nlohmann::json::parse(f);
+  } catch (const nlohmann::json::exception& e) {
+    throw InvalidArgument("sensors: calibration '" + path + "' is not valid JSON (" + e.what() + ")");
+  }
+  SensorCalibration c;
+  auto get = [&](const char* k, double& v) {
+    if (!j.contains(k) || !j[k].is_number() || !std::isfinite(j[k].get<double>()))
+      throw InvalidArgument("sensors: calibration '" + path + "' lacks a number '" + k + "'");
+    v = j[k].get<double>();
+  };
+  get("compass_offset_deg", c.compass_offset_deg);
+  get("compass_drift_deg_per_s", c.compass_drift_deg_per_s);
+  get("t0_s", c.t0_s);
+  get("pitch_offset_deg", c.pitch_offset_deg);
+  get("roll_offset_deg", c.roll_offset_deg);
+  c.samples = j.value("samples", 0);
+  return c;
+}
+
+void SensorCalibrator::Add(double time_s, const SensorReading& raw, double azimuth_deg, double pitch_deg,
+                           double roll_deg) {
+  pairs_.push_back({time_s, raw, azimuth_deg, pitch_deg, roll_deg});
+}
+
+namespace {
+
+// Robust straight line (or constant) fit of y against t: least squares, then
+// again without points more than 3 robust sigmas off. Returns {a, b, rms}.
+std::array<double, 3> RobustLine(const std::vector<double>& t, const std::vector<double>& y, bool with_slope,
+                                 double t0) {
+  std::vector<char> use(t.size(), 1);
+  double a = 0, b = 0, rms = NAN;
+  for (int pass = 0; pass < 2; ++pass) {
+    double n = 0, st = 0, sy = 0, stt = 0, sty = 0;
+    for (size_t i = 0; i < t.size(); ++i) {
+      if (!use[i]) continue;
+      const double x = t[i] - t0;
+      n += 1, st += x, sy += y[i], stt += x * x, sty += x * y[i];
+    }
+    if (n == 0) break;
+    const double det = n * stt - st * st;
+    if (with_slope && det > 1e-9 * n * n) {
+      b = (n * sty - st * sy) / det;
+      a = (sy - b * st) / n;
+    } else {
+      b = 0, a = sy / n;
+    }
+    std::vector<double> res;
+    for (size_t i = 0; i < t.size(); ++i)
+      if (use[i]) res.push_back(std::abs(y[i] - a - b * (t[i] - t0)));
+    std::vector<double> sorted = res;
+    std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
+    const double sigma = std::max(1.4826 * sorted[sorted.size() / 2], 1e-3);
+    double ss = 0;
+    for (double r : res) ss += r * r;
+    rms = std::sqrt(ss / res.size());
+    if (pass == 0)
+      for (size_t i = 0; i < t.size(); ++i) use[i] = std::abs(y[i] - a - b * (t[i] - t0)) <= 3 * sigma;
+  }
+  return {a, b, rms};
+}
+
+}  // namespace
+
+std::optional<SensorCalibration> SensorCalibrator::Estimate() const {
+  if (pairs_.empty()) return std::nullopt;
+  SensorCalibration c;
+  c.samples = size();
+  std::vector<double> tc, yc, tp, yp, tr, yr;
+  double tmin = INFINITY, tmax = -INFINITY;
+  for (const Pair& p : pairs_) {
+    if (p.raw.compass_deg) tc.push_back(p.t), yc.push_back(AngDiffDeg(p.az, *p.raw.compass_deg));
+    if (p.raw.pitch_deg) tp.push_back(p.t), yp.push_back(p.pitch - *p.raw.pitch_deg);
+    if (p.raw.roll_deg) tr.push_back(p.t), yr.push_back(p.roll - *p.raw.roll_deg);
+    tmin = std::min(tmin, p.t), tmax = std::max(tmax, p.t);
+  }
+  c.t0_s = tmin;
+  if (!yc.empty()) {
+    // Unwrap around the first difference so that 359 and 1 average to 0.
+    for (double& v : yc) v = yc[0] + AngDiffDeg(v, yc[0]);
+    const auto [a, b, rms] = RobustLine(tc, yc, tmax - tmin >= 2.0 && tc.size() >= 10, c.t0_s);
+    c.compass_offset_deg = a, c.compass_drift_deg_per_s = b, c.compass_rms_deg = rms;
+  }
+  if (!yp.empty()) {
+    const auto [a, b, rms] = RobustLine(tp, yp, false, c.t0_s);
+    c.pitch_offset_deg = a, c.pitch_rms_deg = rms;
+    (void)b;
+  }
+  if (!yr.empty()) {
+    const auto [a, b, rms] = RobustLine(tr, yr, false, c.t0_s);
+    c.roll_offset_deg = a, c.roll_rms_deg = rms;
+    (void)b;
+  }
+  return c;
 }
 
 double HfovFromFocal35mm(double focal_35mm, int width, int height) {

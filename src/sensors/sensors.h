@@ -4,7 +4,9 @@
 #pragma once
 
 #include <optional>
+#include <cmath>
 #include <string>
+#include <vector>
 
 namespace horizonreg {
 
@@ -38,5 +40,60 @@ SensorReading ReadExif(const std::string& image_path);
 // 35 mm-equivalent focal length (CIPA: the equivalence holds on the diagonal,
 // 43.27 mm for full frame).
 double HfovFromFocal35mm(double focal_35mm, int width, int height);
+
+// One row of a per-frame sensor log.
+struct SensorLogEntry {
+  std::optional<int> frame;      // frame number (0-based), when the log has a `frame` column
+  std::optional<double> time_s;  // seconds, when it has a `time_s` column
+  SensorReading reading;
+};
+
+struct SensorLog {
+  std::vector<SensorLogEntry> entries;  // in file order
+  std::vector<std::string> warnings;    // one line per skipped row (garbage, NaN, missing fields)
+  // The reading of a frame: the row with that frame number, else the row
+  // nearest in time (frame / fps) within half a frame; nullopt if none.
+  std::optional<SensorReading> ForFrame(int frame, double fps) const;
+};
+
+// Reads a per-frame log: CSV with a header naming `frame` and/or `time_s`
+// and any of compass_yaw_deg, inclinometer_pitch_deg, inclinometer_roll_deg
+// (DESIGN.md), or a JSON array of such objects. Rows that cannot be parsed,
+// hold NaN or out-of-range values are skipped with a warning. Throws IoError
+// if the file cannot be read, InvalidArgument naming the file if it has
+// neither a frame nor a time column or no usable row at all.
+SensorLog ReadSensorLog(const std::string& path);
+
+// Offsets that turn raw compass/inclinometer readings into the pose vision
+// measured: compass = offset + drift * (t - t0) (a magnetometer's bias
+// wanders slowly), pitch and roll constant offsets.
+struct SensorCalibration {
+  double compass_offset_deg = 0.0, compass_drift_deg_per_s = 0.0, t0_s = 0.0;
+  double pitch_offset_deg = 0.0, roll_offset_deg = 0.0;
+  int samples = 0;                                                    // visual poses used
+  double compass_rms_deg = NAN, pitch_rms_deg = NAN, roll_rms_deg = NAN;  // residuals after calibration
+  // A reading with the offsets applied (fields absent in `raw` stay absent).
+  SensorReading Apply(const SensorReading& raw, double time_s) const;
+  void Save(const std::string& path) const;               // JSON; throws IoError
+  static SensorCalibration Load(const std::string& path);  // throws IoError / InvalidArgument
+};
+
+// Collects (raw reading, visual pose) pairs and fits the calibration: least
+// squares, then again without pairs more than 3 robust sigmas off. The
+// compass drift is fitted only over >= 2 s with >= 10 pairs. Not thread-safe.
+class SensorCalibrator {
+ public:
+  void Add(double time_s, const SensorReading& raw, double azimuth_deg, double pitch_deg, double roll_deg);
+  int size() const { return static_cast<int>(pairs_.size()); }
+  std::optional<SensorCalibration> Estimate() const;  // nullopt without any pair
+
+ private:
+  struct Pair {
+    double t;
+    SensorReading raw;
+    double az, pitch, roll;
+  };
+  std::vector<Pair> pairs_;
+};
 
 }  // namespace horizonreg

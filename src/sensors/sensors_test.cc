@@ -5,8 +5,10 @@
 
 #include <exiv2/exiv2.hpp>
 #include <filesystem>
+#include <fstream>
 #include <opencv2/imgcodecs.hpp>
 
+#include "util/angles.h"
 #include "util/errors.h"
 
 namespace horizonreg {
@@ -75,6 +77,72 @@ TEST(ReadExif, NoMetadataOrNotAnImageGivesAnEmptyReading) {
 TEST(HfovFromFocal35mm, FullFrameFiftyMillimetres) {
   // 36 x 24 mm frame at 50 mm: horizontal 39.6 deg.
   EXPECT_NEAR(HfovFromFocal35mm(50.0, 3000, 2000), 39.598, 0.01);
+}
+
+}  // namespace
+}  // namespace horizonreg
+
+namespace horizonreg {
+namespace {
+
+TEST(ReadSensorLog, SkipsGarbageWithWarningsAndFindsFrames) {
+  const auto path = std::filesystem::temp_directory_path() / "hr_sensor_log.csv";
+  std::ofstream(path) << "frame,compass_yaw_deg,inclinometer_pitch_deg,inclinometer_roll_deg\n"
+                         "0,36.8,-3.2,-1.1\n"
+                         "1,garbage,-3.0,0.1\n"
+                         "2,nan,-3.0,0.0\n"
+                         "3,37.7,-2.6,-0.2\n"
+                         "what is this line\n"
+                         "5,38.0,,0.3\n";
+  const SensorLog log = ReadSensorLog(path.string());
+  std::filesystem::remove(path);
+  EXPECT_EQ(log.entries.size(), 3u);
+  EXPECT_EQ(log.warnings.size(), 3u);
+  ASSERT_TRUE(log.ForFrame(3, 10.0));
+  EXPECT_NEAR(*log.ForFrame(3, 10.0)->compass_deg, 37.7, 1e-12);
+  EXPECT_FALSE(log.ForFrame(4, 10.0));  // missing frame
+  EXPECT_FALSE(log.ForFrame(5, 10.0)->pitch_deg);
+  EXPECT_NE(log.warnings[0].find("line 3"), std::string::npos) << log.warnings[0];
+}
+
+TEST(ReadSensorLog, TimeColumnsAndBadFiles) {
+  const auto dir = std::filesystem::temp_directory_path();
+  const auto timed = dir / "hr_sensor_time.json", headless = dir / "hr_sensor_bad.csv";
+  std::ofstream(timed) << R"([{"time_s": 0.0, "compass_yaw_deg": 10}, {"time_s": 0.1, "compass_yaw_deg": 11}])";
+  std::ofstream(headless) << "a,b,c\n1,2,3\n";
+  const SensorLog log = ReadSensorLog(timed.string());
+  ASSERT_TRUE(log.ForFrame(1, 10.0));
+  EXPECT_NEAR(*log.ForFrame(1, 10.0)->compass_deg, 11.0, 1e-12);
+  EXPECT_THROW(ReadSensorLog(headless.string()), InvalidArgument);
+  EXPECT_THROW(ReadSensorLog((dir / "hr_nonexistent.csv").string()), IoError);
+  std::filesystem::remove(timed), std::filesystem::remove(headless);
+}
+
+TEST(SensorCalibrator, RecoversOffsetAndDriftDespiteAnOutlier) {
+  SensorCalibrator cal;
+  for (int i = 0; i < 40; ++i) {
+    const double t = i * 0.1, az = 358.0 + 0.5 * i;  // crosses north
+    SensorReading raw;
+    raw.compass_deg = WrapAzimuthDeg(az - (7.0 + 0.25 * t) + (i == 13 ? 20.0 : 0.0));
+    raw.pitch_deg = -3.0 - 1.2;
+    raw.roll_deg = 0.5 + 0.8;
+    cal.Add(t, raw, WrapAzimuthDeg(az), -3.0, 0.5);
+  }
+  const auto c = cal.Estimate();
+  ASSERT_TRUE(c);
+  EXPECT_NEAR(c->compass_offset_deg, 7.0, 1e-6);
+  EXPECT_NEAR(c->compass_drift_deg_per_s, 0.25, 1e-6);
+  EXPECT_NEAR(c->pitch_offset_deg, 1.2, 1e-9);
+  EXPECT_NEAR(c->roll_offset_deg, -0.8, 1e-9);
+  SensorReading raw;
+  raw.compass_deg = 100.0;
+  EXPECT_NEAR(*c->Apply(raw, 5.0).compass_deg, 100.0 + 7.0 + 0.25 * 5.0, 1e-6);
+  const auto path = std::filesystem::temp_directory_path() / "hr_cal.json";
+  c->Save(path.string());
+  const SensorCalibration back = SensorCalibration::Load(path.string());
+  std::filesystem::remove(path);
+  EXPECT_NEAR(back.compass_drift_deg_per_s, 0.25, 1e-9);
+  EXPECT_FALSE(SensorCalibrator{}.Estimate());
 }
 
 }  // namespace
