@@ -28,6 +28,7 @@ bench: build
 	$(BUILD)/horizon_bench
 	$(BUILD)/skyline_bench
 	$(BUILD)/register_bench
+	$(BUILD)/track_bench
 	scripts/bench_process.sh $(BUILD)/horizonreg
 
 asan: test-deps

@@ -170,6 +170,19 @@ PY
     && ok "render view and panorama" || bad "render"
   expect_exit2 "render bad --size" render --dem "$shared/dem/zion_srtm.tif" --lat 37.37 --lon -113.16 --azimuth 0 --size 640 -o "$work/out.png"
   expect_exit2 "render pitch 100" render --dem "$shared/dem/zion_srtm.tif" --lat 37.37 --lon -113.16 --azimuth 0 --pitch 100 -o "$work/out.png"
+  # track
+  q="$shared/scenes/seq"
+  if [ -d "$q" ]; then
+    printf 'frame,compass_yaw_deg,inclinometer_pitch_deg,inclinometer_roll_deg\n0,36.8,-3.2,-1.1\n1,junk,-3.0,0.1\n2,nan,-3.0,0.0\n' > "$work/s.csv"
+    "$bin" track "$q/rainier_pan_%04d.jpg" --dem "$shared/dem/mt_rainier_90m.tif" --lat 46.86146 --lon -121.57288 \
+      --sensors "$work/s.csv" --fps 10 --max-frames 3 --poses "$work/p.csv" -o "$work/t.mp4" 2> "$work/track.err" \
+      && [ "$(grep -c 'skipped' "$work/track.err")" -eq 2 ] && [ "$(wc -l < "$work/p.csv")" -eq 4 ] \
+      && head -1 "$work/p.csv" | grep -q "^frame,azimuth_deg,pitch_deg,roll_deg,hfov_deg,source$" && [ -s "$work/t.mp4" ] \
+      && ok "track: poses CSV, video, garbage sensor rows skipped with warnings" || bad "track $(cat "$work/track.err")"
+    expect_exit2 "track unopenable video" track "$work/nope.mp4" --dem "$shared/dem/mt_rainier_90m.tif" --lat 46.86 --lon -121.57 --poses "$work/out.json"
+    printf 'a,b\n1,2\n' > "$work/nohead.csv"
+    expect_exit2 "track sensor log without frame column" track "$q/rainier_pan_%04d.jpg" --dem "$shared/dem/mt_rainier_90m.tif" --lat 46.86 --lon -121.57 --sensors "$work/nohead.csv" --poses "$work/out.json"
+  fi
 else
   echo "SKIPPED: register dev-scene cases need ../shared"
 fi

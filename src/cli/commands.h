@@ -78,6 +78,17 @@ void AddRenderCommand(CLI::App& app, RenderArgs& args);
 int RunRender(const RenderArgs& args);
 std::pair<int, int> ParseSize(const std::string& s);
 
+struct TrackArgs {
+  std::string input, sensors, calibration_in, calibration_out, poses, output;
+  std::vector<std::string> dem;
+  double lat = NAN, lon = NAN;
+  std::optional<double> agl, alt;
+  double fps = 30.0;
+  int max_frames = 0;
+};
+void AddTrackCommand(CLI::App& app, TrackArgs& args);
+int RunTrack(const TrackArgs& args);
+
 struct DemoArgs {
   std::string output_dir = ".";
   std::string dem;  // default: matplotlib's jacksboro_fault_dem.npz
