@@ -9,6 +9,7 @@
 
 #include "util/angles.h"
 #include "util/errors.h"
+#include "util/text.h"
 
 namespace horizonreg {
 
@@ -32,34 +33,6 @@ void CheckPosition(const std::string& path, const std::string& where, double lat
     m << "landmarks: '" << path << "' " << where << ": position (" << lat << ", " << lon << ") is out of range";
     throw InvalidArgument(m.str());
   }
-}
-
-std::vector<std::string> SplitCsv(const std::string& line) {
-  std::vector<std::string> out(1);
-  bool quoted = false;
-  for (size_t i = 0; i < line.size(); ++i) {
-    const char c = line[i];
-    if (c == '"') {
-      if (quoted && i + 1 < line.size() && line[i + 1] == '"') out.back() += '"', ++i;
-      else quoted = !quoted;
-    } else if (c == ',' && !quoted) {
-      out.emplace_back();
-    } else if (c != '\r') {
-      out.back() += c;
-    }
-  }
-  return out;
-}
-
-std::optional<double> Number(const std::string& s) {
-  size_t used = 0;
-  try {
-    const double v = std::stod(s, &used);
-    while (used < s.size() && std::isspace(static_cast<unsigned char>(s[used]))) ++used;
-    if (used == s.size() && std::isfinite(v)) return v;
-  } catch (const std::exception&) {
-  }
-  return std::nullopt;
 }
 
 }  // namespace
@@ -96,7 +69,7 @@ std::vector<Landmark> LoadLandmarks(const std::string& path) {
       const auto& p = feature.value("properties", nlohmann::json::object());
       l.name = p.contains("name") && p["name"].is_string() ? p["name"].get<std::string>() : "";
       if (p.contains("ele") && p["ele"].is_number()) l.ele_m = p["ele"].get<double>();
-      if (p.contains("ele") && p["ele"].is_string()) l.ele_m = Number(p["ele"].get<std::string>());
+      if (p.contains("ele") && p["ele"].is_string()) l.ele_m = ParseDouble(p["ele"].get<std::string>());
       out.push_back(std::move(l));
     }
     return out;
@@ -107,17 +80,17 @@ std::vector<Landmark> LoadLandmarks(const std::string& path) {
   while (std::getline(lines, line)) {
     ++number;
     if (line.find_first_not_of(" \t\r") == std::string::npos || line[0] == '#') continue;
-    const auto cells = SplitCsv(line);
+    const auto cells = SplitCsvLine(line);
     const std::string where = "line " + std::to_string(number);
     if (cells.size() < 3) throw InvalidArgument("landmarks: '" + path + "' " + where + ": expected name,lat,lon[,ele]");
-    const auto lat = Number(cells[1]), lon = Number(cells[2]);
+    const auto lat = ParseDouble(cells[1]), lon = ParseDouble(cells[2]);
     if (!lat || !lon) {
       if (number == 1) continue;  // header
       throw InvalidArgument("landmarks: '" + path + "' " + where + ": lat/lon are not numbers");
     }
     CheckPosition(path, where, *lat, *lon);
     Landmark l{cells[0], *lat, *lon, std::nullopt};
-    if (cells.size() > 3 && !cells[3].empty()) l.ele_m = Number(cells[3]);
+    if (cells.size() > 3 && !cells[3].empty()) l.ele_m = ParseDouble(cells[3]);
     out.push_back(std::move(l));
   }
   return out;

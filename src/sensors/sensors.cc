@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT
 #include "sensors/sensors.h"
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdio>
@@ -11,6 +12,7 @@
 
 #include "util/angles.h"
 #include "util/errors.h"
+#include "util/text.h"
 
 namespace horizonreg {
 
@@ -128,30 +130,6 @@ std::optional<SensorReading> SensorLog::ForFrame(int frame, double fps) const {
   return std::nullopt;
 }
 
-namespace {
-
-std::vector<std::string> SplitComma(const std::string& line) {
-  std::vector<std::string> out(1);
-  for (char c : line) {
-    if (c == ',') out.emplace_back();
-    else if (c != '\r' && c != ' ' && c != '\t') out.back() += c;
-  }
-  return out;
-}
-
-std::optional<double> ParseNumber(const std::string& s) {
-  if (s.empty()) return std::nullopt;
-  size_t used = 0;
-  try {
-    const double v = std::stod(s, &used);
-    if (used == s.size()) return v;
-  } catch (const std::exception&) {
-  }
-  return std::nullopt;
-}
-
-}  // namespace
-
 SensorLog ReadSensorLog(const std::string& path) {
   std::ifstream f(path);
   if (!f) throw IoError("sensors: cannot open '" + path + "'");
@@ -184,7 +162,8 @@ SensorLog ReadSensorLog(const std::string& path) {
     std::istringstream lines(text);
     std::string line;
     std::getline(lines, line);
-    const auto header = SplitComma(line);
+    auto header = SplitCsvLine(line);
+    for (std::string& h : header) h.erase(std::remove_if(h.begin(), h.end(), ::isspace), h.end());
     auto col = [&](const char* name) {
       for (size_t i = 0; i < header.size(); ++i)
         if (header[i] == name) return static_cast<int>(i);
@@ -198,12 +177,12 @@ SensorLog ReadSensorLog(const std::string& path) {
     while (std::getline(lines, line)) {
       ++number;
       if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
-      const auto cells = SplitComma(line);
+      const auto cells = SplitCsvLine(line);
       auto cell = [&](int c) -> std::optional<double> {
         if (c < 0) return std::nullopt;
         if (c >= static_cast<int>(cells.size())) return NAN;
-        if (cells[c].empty()) return std::nullopt;
-        return ParseNumber(cells[c]).value_or(NAN);
+        if (cells[c].find_first_not_of(" \t") == std::string::npos) return std::nullopt;
+        return ParseDouble(cells[c]).value_or(NAN);
       };
       const auto frame = cell(c_frame), time = cell(c_time), yaw = cell(c_yaw), pitch = cell(c_pitch),
                  roll = cell(c_roll);

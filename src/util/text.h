@@ -1,0 +1,53 @@
+// SPDX-License-Identifier: MIT
+// Small text helpers for the CSV and number parsing of input files.
+#pragma once
+
+#include <cctype>
+#include <cmath>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace horizonreg {
+
+// The number in `s` (surrounding spaces allowed), nullopt if `s` is not
+// exactly one finite or non-finite number ("nan" parses as NaN).
+inline std::optional<double> ParseDouble(const std::string& s) {
+  size_t begin = 0, end = s.size();
+  while (begin < end && std::isspace(static_cast<unsigned char>(s[begin]))) ++begin;
+  while (end > begin && std::isspace(static_cast<unsigned char>(s[end - 1]))) --end;
+  if (begin == end) return std::nullopt;
+  const std::string t = s.substr(begin, end - begin);
+  size_t used = 0;
+  try {
+    const double v = std::stod(t, &used);
+    if (used == t.size()) return v;
+  } catch (const std::exception&) {
+  }
+  return std::nullopt;
+}
+
+// The cells of one CSV line: commas separate, double quotes group (a doubled
+// quote inside is one quote), carriage returns are dropped.
+inline std::vector<std::string> SplitCsvLine(const std::string& line) {
+  std::vector<std::string> out(1);
+  bool quoted = false;
+  for (size_t i = 0; i < line.size(); ++i) {
+    const char c = line[i];
+    if (c == '"') {
+      if (quoted && i + 1 < line.size() && line[i + 1] == '"') {
+        out.back() += '"';
+        ++i;
+      } else {
+        quoted = !quoted;
+      }
+    } else if (c == ',' && !quoted) {
+      out.emplace_back();
+    } else if (c != '\r') {
+      out.back() += c;
+    }
+  }
+  return out;
+}
+
+}  // namespace horizonreg
