@@ -3,7 +3,6 @@
 // overlay, and optionally a 360-degree panorama.
 #include <CLI/CLI.hpp>
 #include <algorithm>
-#include <opencv2/imgproc.hpp>
 
 #include "cli/commands.h"
 #include "cli/image_io.h"
@@ -71,29 +70,8 @@ int RunRender(const RenderArgs& a) {
     const auto [lo, hi] = std::minmax_element(horizon.elevation_deg.begin(), horizon.elevation_deg.end());
     const double min_el = std::max(-60.0, *lo - 3.0), max_el = std::min(80.0, *hi + 4.0);
     const int pw = 3600, ph = std::clamp(static_cast<int>(std::lround((max_el - min_el) * 10.0)), 120, 1800);
-    cv::Mat pano = RenderPanorama(site.window, site.observer, pw, ph, min_el, max_el, ro);
-    const double scale = 1.6;
-    for (int az = 0; az < 360; az += 15) {
-      const int x = static_cast<int>(az * pw / 360.0);
-      cv::line(pano, {x, 0}, {x, static_cast<int>(12 * scale)}, cv::Scalar(255, 255, 255), 2);
-      static const char* kNames[] = {"N", "NE", "E", "SE", "S", "SW", "W", "NW"};
-      const std::string label = az % 45 == 0 ? kNames[az / 45] : std::to_string(az);
-      cv::putText(pano, label, {x + 4, static_cast<int>(30 * scale)}, cv::FONT_HERSHEY_SIMPLEX, 0.5 * scale,
-                  cv::Scalar(40, 40, 40), 4, cv::LINE_AA);
-      cv::putText(pano, label, {x + 4, static_cast<int>(30 * scale)}, cv::FONT_HERSHEY_SIMPLEX, 0.5 * scale,
-                  cv::Scalar(255, 255, 255), 1, cv::LINE_AA);
-    }
-    for (const ResolvedLandmark& l : landmarks) {
-      if (!l.visible) continue;
-      const int x = static_cast<int>(l.azimuth_deg * pw / 360.0);
-      const int y = static_cast<int>((max_el - l.elevation_deg) / (max_el - min_el) * ph);
-      cv::circle(pano, {x, y}, 4, cv::Scalar(0, 0, 255), cv::FILLED, cv::LINE_AA);
-      const std::string text = l.name.empty() ? std::to_string(static_cast<int>(l.height_m)) + " m" : l.name;
-      cv::putText(pano, text, {x + 6, y - 8}, cv::FONT_HERSHEY_SIMPLEX, 0.45 * scale, cv::Scalar(40, 40, 40), 4,
-                  cv::LINE_AA);
-      cv::putText(pano, text, {x + 6, y - 8}, cv::FONT_HERSHEY_SIMPLEX, 0.45 * scale, cv::Scalar(255, 255, 255), 1,
-                  cv::LINE_AA);
-    }
+    const cv::Mat pano = DrawPanoramaLabels(RenderPanorama(site.window, site.observer, pw, ph, min_el, max_el, ro),
+                                            min_el, max_el, landmarks);
     WriteImage(a.panorama, pano);
   }
   WriteImage(a.output, view);

@@ -297,4 +297,35 @@ OverlayResult DrawOverlay(const cv::Mat& image, const CameraPose& pose, const Ca
   return result;
 }
 
+cv::Mat DrawPanoramaLabels(const cv::Mat& panorama, double min_elevation_deg, double max_elevation_deg,
+                           const std::vector<ResolvedLandmark>& landmarks) {
+  if (!(max_elevation_deg > min_elevation_deg)) throw InvalidArgument("DrawPanoramaLabels: empty elevation range");
+  cv::Mat out;
+  if (panorama.channels() == 1)
+    cv::cvtColor(panorama, out, cv::COLOR_GRAY2BGR);
+  else
+    out = panorama.clone();
+  const Eigen::Matrix3d identity = Eigen::Matrix3d::Identity();
+  const CameraIntrinsics k = CameraIntrinsics::FromHfov(std::max(1, out.cols), std::max(1, out.rows), 90.0);
+  const double scale = 1.6;
+  Canvas c{out, scale, 2, identity, k};
+  const double font = 0.5 * scale;
+  const int w = out.cols, h = out.rows;
+  for (int az = 0; az < 360; az += 15) {
+    const int x = static_cast<int>(az * w / 360.0);
+    cv::line(out, {x, 0}, {x, static_cast<int>(12 * scale)}, cv::Scalar(255, 255, 255), 2);
+    c.Text(az % 45 == 0 ? CompassName(az) : std::to_string(az), {x + 4, static_cast<int>(30 * scale)}, font,
+           az % 45 == 0 ? cv::Scalar(80, 220, 255) : cv::Scalar(255, 255, 255));
+  }
+  for (const ResolvedLandmark& l : landmarks) {
+    if (!l.visible) continue;
+    const int x = static_cast<int>(l.azimuth_deg * w / 360.0);
+    const int y = static_cast<int>((max_elevation_deg - l.elevation_deg) / (max_elevation_deg - min_elevation_deg) * h);
+    cv::circle(out, {x, y}, 4, cv::Scalar(0, 0, 255), cv::FILLED, cv::LINE_AA);
+    c.Text(l.name.empty() ? Format("%.0f m", l.height_m) : l.name, {x + 6, y - 8}, 0.9 * font,
+           cv::Scalar(255, 255, 255));
+  }
+  return out;
+}
+
 }  // namespace horizonreg

@@ -55,4 +55,11 @@ struct OverlayResult {
 OverlayResult DrawOverlay(const cv::Mat& image, const CameraPose& pose, const CameraIntrinsics& intrinsics,
                           const OverlayInput& input, const OverlayOptions& options);
 
+// Labels a 360-degree equirectangular panorama (render/render.h: x =
+// azimuth from 0 at the left edge, y = elevation from max_elevation_deg at the
+// top to min_elevation_deg at the bottom): compass ticks every 15 deg with
+// N/NE/E... names, and the visible landmarks. Returns a BGR copy.
+cv::Mat DrawPanoramaLabels(const cv::Mat& panorama, double min_elevation_deg, double max_elevation_deg,
+                           const std::vector<ResolvedLandmark>& landmarks);
+
 }  // namespace horizonreg
