@@ -214,6 +214,13 @@ class Scorer {
   double cx_, cy_, tau2_;
 };
 
+std::vector<Column> VisibleColumns(const Skyline& skyline) {
+  std::vector<Column> all;
+  for (int i = 0; i < skyline.width; ++i)
+    if (std::isfinite(skyline.y[i])) all.push_back({i + 0.5, skyline.y[i], 1.0});
+  return all;
+}
+
 std::vector<Column> Subsample(const std::vector<Column>& all, int count) {
   if (static_cast<int>(all.size()) <= count) return all;
   std::vector<Column> out;
@@ -547,9 +554,7 @@ Registration Register(const Skyline& skyline, const HorizonProfile& horizon, con
   const double tau = options.inlier_px * px_scale;
   Registration out;
 
-  std::vector<Column> all;
-  for (int i = 0; i < width; ++i)
-    if (std::isfinite(skyline.y[i])) all.push_back({i + 0.5, skyline.y[i], 1.0});
+  std::vector<Column> all = VisibleColumns(skyline);
   const double visible = static_cast<double>(all.size()) / width;
   if (visible < options.min_visible_fraction) {
     out.message = "too little skyline visible";
@@ -719,9 +724,7 @@ Registration RefinePose(const Skyline& skyline, const HorizonProfile& horizon, c
   const double px_scale = std::max(1.0, width / 1000.0);
   const double tau = options.inlier_px * px_scale;
   Registration out;
-  std::vector<Column> all;
-  for (int i = 0; i < width; ++i)
-    if (std::isfinite(skyline.y[i])) all.push_back({i + 0.5, skyline.y[i], 1.0});
+  std::vector<Column> all = VisibleColumns(skyline);
   if (static_cast<double>(all.size()) / width < options.min_visible_fraction || all.size() < 8) {
     out.message = "too little skyline visible";
     return out;
