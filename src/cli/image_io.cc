@@ -28,13 +28,14 @@ cv::Mat ReadImage(const std::string& path) {
   }
   cv::Mat image;
   try {
-    image = cv::imdecode(bytes, cv::IMREAD_UNCHANGED);
+    // IMREAD_COLOR applies the EXIF orientation (phones store portrait photos
+    // sideways with a rotation tag) and gives 8-bit BGR for any input depth.
+    image = cv::imdecode(bytes, cv::IMREAD_COLOR);
   } catch (const cv::Exception&) {
     image.release();  // reported below with the file name
   }
   if (image.empty()) throw IoError("image: '" + path + "' is not a readable image");
-  if (image.depth() == CV_16U) image.convertTo(image, CV_8U, 1.0 / 256.0);
-  if (image.depth() != CV_8U) throw IoError("image: '" + path + "' has an unsupported pixel type");
+  if (image.type() != CV_8UC3) throw IoError("image: '" + path + "' has an unsupported pixel type");
   return image;
 }
 
