@@ -92,6 +92,7 @@ int RunTrack(const TrackArgs& args);
 struct DemoArgs {
   std::string output_dir = ".";
   std::string dem;  // default: matplotlib's jacksboro_fault_dem.npz
+  int seed = 0;
 };
 void AddDemoCommand(CLI::App& app, DemoArgs& args);
 int RunDemo(const DemoArgs& args);

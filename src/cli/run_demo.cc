@@ -7,6 +7,8 @@
 // overlay, the horizon chart and the horizon JSON.
 #include <CLI/CLI.hpp>
 #include <algorithm>
+#include <array>
+#include <random>
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
@@ -33,6 +35,7 @@ void AddDemoCommand(CLI::App& app, DemoArgs& a) {
   CLI::App* c = app.add_subcommand("demo", "Run the main job on built-in data (a DEM shipped by Debian)");
   c->add_option("--output-dir", a.output_dir, "Folder for the demo's pictures and files")->capture_default_str();
   c->add_option("--dem", a.dem, "DEM to use instead of matplotlib's jacksboro_fault_dem.npz");
+  c->add_option("--seed", a.seed, "0: the standard secret pose; other values draw another one")->capture_default_str();
 }
 
 int RunDemo(const DemoArgs& a) {
@@ -68,12 +71,16 @@ int RunDemo(const DemoArgs& a) {
   const auto t2 = Clock::now();
   const auto ridges = ComputeRidges(whole, observer, options, RidgeOptions{});
 
-  // The secret pose: the camera points where the horizon has the most relief
-  // (as a photographer would), horizon in the upper part of the frame, a
-  // little roll. Nothing of it is passed to the registration below.
+  // The secret pose: the camera points where the horizon has relief (as a
+  // photographer would), horizon in the upper part of the frame, some roll.
+  // --seed 0 is the most structured view with fixed offsets; other seeds draw
+  // the view among the structured ones and the offsets at random. Nothing of
+  // it is passed to the registration below.
   const int w = 1024, h = 683;
-  const double hfov = 50.0;
-  double best_az = 0.0, best_relief = -1.0, best_mean = 0.0;
+  std::mt19937 rng(static_cast<unsigned>(a.seed));
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  const double hfov = a.seed == 0 ? 50.0 : 35.0 + 30.0 * unit(rng);
+  std::vector<std::array<double, 3>> views;  // relief, azimuth, mean elevation
   for (double az = 0.0; az < 360.0; az += 2.0) {
     double sum = 0.0, sum2 = 0.0;
     int n = 0;
@@ -81,11 +88,16 @@ int RunDemo(const DemoArgs& a) {
       const double e = profile.ElevationAtDeg(WrapAzimuthDeg(az + d));
       sum += e, sum2 += e * e, ++n;
     }
-    const double mean = sum / n, relief = std::sqrt(std::max(0.0, sum2 / n - mean * mean));
-    if (relief > best_relief) best_relief = relief, best_az = az, best_mean = mean;
+    const double mean = sum / n;
+    views.push_back({std::sqrt(std::max(0.0, sum2 / n - mean * mean)), az, mean});
   }
+  std::sort(views.rbegin(), views.rend());
+  const auto& view_choice = views[a.seed == 0 ? 0 : static_cast<size_t>(unit(rng) * views.size() / 4)];
   const double vfov = 2.0 * RadToDeg(std::atan(std::tan(DegToRad(hfov / 2)) * h / w));
-  const CameraPose secret{WrapAzimuthDeg(best_az + 3.7), best_mean - 0.12 * vfov, 1.4};
+  const CameraPose secret =
+      a.seed == 0 ? CameraPose{WrapAzimuthDeg(view_choice[1] + 3.7), view_choice[2] - 0.12 * vfov, 1.4}
+                  : CameraPose{WrapAzimuthDeg(view_choice[1] + 6.0 * (unit(rng) - 0.5)),
+                               view_choice[2] - (0.05 + 0.2 * unit(rng)) * vfov, 6.0 * (unit(rng) - 0.5)};
   const CameraIntrinsics k = CameraIntrinsics::FromHfov(w, h, hfov);
   RenderOptions ro;
   const cv::Mat view = RenderView(whole, observer, secret, k, ro);

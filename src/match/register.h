@@ -32,7 +32,7 @@ struct RegistrationOptions {
   double max_abs_roll_deg = 30.0;    // Hypotheses with more roll are dropped (without an inclinometer), degrees.
   int image_extrema = 7;             // Most prominent image peaks and dips paired into hypotheses, >= 2.
   int horizon_extrema = 70;          // Most prominent DEM peaks and dips of each kind, >= 2.
-  double min_image_prominence_px = 3.0;  // Image extrema below this are noise, pixels (scaled up for large images).
+  double min_image_prominence_px = 1.5;  // Image extrema below this are noise, pixels (scaled up for large images).
   double min_horizon_prominence_deg = 0.03;  // DEM extrema below this are noise, degrees.
   int coarse_columns = 24;           // Skyline columns scored per hypothesis, >= 8.
   int quick_columns = 120;           // Skyline columns for refining candidates, >= 8.
