@@ -142,6 +142,9 @@ assert j["status"] == "registered", j
 assert abs((j["azimuth_deg"] - t["yaw_deg"] + 180) % 360 - 180) < 0.3 and abs(j["pitch_deg"] - t["pitch_deg"]) < 0.2
 PY
   file "$work/r.png" | grep -q "PNG image data, 1024 x 683" && ok "register overlay png" || bad "register overlay png"
+  "$bin" register "$sc/zion_01.jpg" --dem "$shared/dem/zion_srtm.tif" --lat 37.368515 --lon -113.161021 \
+    --initial 313.5,-1.5,1.5,40.5 | grep -q '"status": "registered"' && ok "register --initial refines a known pose" || bad "register --initial"
+  expect_exit2 "register bad --initial" register "$sc/zion_01.jpg" --dem "$shared/dem/zion_srtm.tif" --lat 37.37 --lon -113.16 --initial 1,2,3 --json "$work/out.json"
   "$bin" register "$sc/alpsfog_00.jpg" --dem "$shared/dem/N47E009.hgt" --lat 47.3 --lon 9.8 > "$work/fog.json" \
     && grep -q '"status": "no_match"' "$work/fog.json" && ok "fog scene: no_match, exit 0" || bad "fog scene"
   "$bin" register "$sc/zion_01.jpg" --dem "$shared/dem/zion_srtm.tif" --sensors "$sc/zion_01.sensors.json" \

@@ -39,7 +39,7 @@ struct RegisterArgs {
   std::string image;
   std::vector<std::string> dem;
   std::optional<double> lat, lon, agl, alt, hfov;
-  std::string sensors, hfov_range, json, overlay, landmarks;
+  std::string sensors, hfov_range, json, overlay, landmarks, initial;
   double refraction = kDefaultRefraction;
   double max_distance = 100'000.0;
   double step = 0.1;  // finer than `horizon`'s default: each bin holds its maximum, 0.25 deg bins bias pitch

@@ -37,6 +37,8 @@ void AddRegisterCommand(CLI::App& app, RegisterArgs& a) {
   c->add_option("--step", a.step, "Azimuth step of the DEM horizon, degrees (360 / step whole)")->capture_default_str();
   c->add_option("--refraction", a.refraction, "Refraction coefficient k")->capture_default_str();
   c->add_option("--max-distance", a.max_distance, "Terrain farther than this is ignored, metres")->capture_default_str();
+  c->add_option("--initial", a.initial,
+                 "Known approximate pose AZ,PITCH,ROLL,HFOV (degrees): refine it instead of searching (fixed cameras)");
   c->add_flag("--no-exif", a.no_exif, "Ignore the photo's EXIF (GPS, focal length, direction)");
   c->add_option("--json", a.json, "Write the JSON here instead of stdout");
   c->add_option("--overlay", a.overlay, "Draw the overlay at the recovered pose over the photo into this PNG");
@@ -136,7 +138,18 @@ int RunRegister(const RegisterArgs& a) {
   const double horizon_ms = Ms(h0, Clock::now());
   const auto [skyline, skyline_ms] = skyline_job.get();
   const auto m0 = Clock::now();
-  const Registration r = Register(skyline, profile, ro);
+  Registration r;
+  if (a.initial.empty()) {
+    r = Register(skyline, profile, ro);
+  } else {
+    double v[4];
+    char tail = 0;
+    if (std::sscanf(a.initial.c_str(), "%lf,%lf,%lf,%lf%c", &v[0], &v[1], &v[2], &v[3], &tail) != 4 ||
+        !(v[3] > 0 && v[3] < 170) || !(std::abs(v[1]) <= 90) || !std::isfinite(v[0] + v[2]))
+      throw InvalidArgument("--initial '" + a.initial + "': expected AZ,PITCH,ROLL,HFOV in degrees");
+    const double focal = (image.cols / 2.0) / std::tan(DegToRad(v[3]) / 2.0);
+    r = RefinePose(skyline, profile, {WrapAzimuthDeg(v[0]), v[1], v[2]}, focal, !a.hfov_range.empty() || a.hfov, ro);
+  }
   const double match_ms = Ms(m0, Clock::now());
 
   nlohmann::json j;

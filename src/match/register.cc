@@ -562,8 +562,18 @@ Registration Register(const Skyline& skyline, const HorizonProfile& horizon, con
   }
 
   // Extrema: image (up positive, pixels) and DEM horizon (degrees).
-  std::vector<double> up(width);
-  for (int i = 0; i < width; ++i) up[i] = -skyline.y[i];
+  // Extrema of the skyline after a running median over a few columns: a spike
+  // one or two columns wide (a pole, a misread pixel run) is not a peak.
+  const int half = std::max(2, static_cast<int>(std::lround(4 * px_scale)));
+  std::vector<double> up(width, NAN), window;
+  for (int i = 0; i < width; ++i) {
+    if (!std::isfinite(skyline.y[i])) continue;
+    window.clear();
+    for (int j = std::max(0, i - half); j <= std::min(width - 1, i + half); ++j)
+      if (std::isfinite(skyline.y[j])) window.push_back(skyline.y[j]);
+    std::nth_element(window.begin(), window.begin() + window.size() / 2, window.end());
+    up[i] = -window[window.size() / 2];
+  }
   ExtremaOptions eo;
   eo.min_prominence = options.min_image_prominence_px * px_scale;
   eo.max_count = options.image_extrema;
