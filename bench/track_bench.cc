@@ -7,9 +7,9 @@
 #include <cmath>
 #include <cstdio>
 #include <memory>
-#include <string>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <string>
 
 #include "testing/shared_data.h"
 #include "track/track.h"
@@ -40,8 +40,8 @@ void BM_TrackFrame(benchmark::State& state) {
   // following frames: tracked from the previous pose with the motion model,
   // re-registered when tracking fails (counted in tracked_share).
   size_t i = 0;
-  while (i < frames.size() && tracker->Process(frames[i], static_cast<int>(i), std::nullopt, i / 10.0).source !=
-                                  PoseSource::kVision)
+  while (i < frames.size() &&
+         tracker->Process(frames[i], static_cast<int>(i), std::nullopt, i / 10.0).source != PoseSource::kVision)
     ++i;
   if (i + 2 >= frames.size()) return state.SkipWithError("no frame registered");
   const size_t start = ++i;

@@ -8,11 +8,11 @@
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <array>
-#include <random>
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
+#include <random>
 
 #include "cli/commands.h"
 #include "cli/image_io.h"
@@ -94,10 +94,10 @@ int RunDemo(const DemoArgs& a) {
   std::sort(views.rbegin(), views.rend());
   const auto& view_choice = views[a.seed == 0 ? 0 : static_cast<size_t>(unit(rng) * views.size() / 4)];
   const double vfov = 2.0 * RadToDeg(std::atan(std::tan(DegToRad(hfov / 2)) * h / w));
-  const CameraPose secret =
-      a.seed == 0 ? CameraPose{WrapAzimuthDeg(view_choice[1] + 3.7), view_choice[2] - 0.12 * vfov, 1.4}
-                  : CameraPose{WrapAzimuthDeg(view_choice[1] + 6.0 * (unit(rng) - 0.5)),
-                               view_choice[2] - (0.05 + 0.2 * unit(rng)) * vfov, 6.0 * (unit(rng) - 0.5)};
+  const CameraPose secret = a.seed == 0
+                                ? CameraPose{WrapAzimuthDeg(view_choice[1] + 3.7), view_choice[2] - 0.12 * vfov, 1.4}
+                                : CameraPose{WrapAzimuthDeg(view_choice[1] + 6.0 * (unit(rng) - 0.5)),
+                                             view_choice[2] - (0.05 + 0.2 * unit(rng)) * vfov, 6.0 * (unit(rng) - 0.5)};
   const CameraIntrinsics k = CameraIntrinsics::FromHfov(w, h, hfov);
   RenderOptions ro;
   const cv::Mat view = RenderView(whole, observer, secret, k, ro);
@@ -144,8 +144,9 @@ int RunDemo(const DemoArgs& a) {
     OverlayOptions oo;
     oo.eye_height_m = kDefaultEyeHeightM;
     oo.caption = "demo: registered from the image alone (no compass, no calibration)";
-    WriteImage(overlay_path,
-               DrawOverlay(photo, r.pose, r.Intrinsics(w, h), {&profile, &ridges, SummitsFromHorizon(profile)}, oo).image);
+    WriteImage(
+        overlay_path,
+        DrawOverlay(photo, r.pose, r.Intrinsics(w, h), {&profile, &ridges, SummitsFromHorizon(profile)}, oo).image);
   } else {
     std::printf("  recovered     no match: %s\n", r.message.c_str());
   }

@@ -5,17 +5,17 @@
 #include <chrono>
 #include <future>
 #include <nlohmann/json.hpp>
+#include <opencv2/imgproc.hpp>
 #include <sstream>
 
 #include "cli/commands.h"
 #include "cli/image_io.h"
 #include "cli/output.h"
-#include "match/register.h"
 #include "cli/site.h"
+#include "match/register.h"
 #include "overlay/overlay.h"
-#include "skyline/skyline.h"
-#include <opencv2/imgproc.hpp>
 #include "sensors/sensors.h"
+#include "skyline/skyline.h"
 #include "util/angles.h"
 #include "util/errors.h"
 
@@ -32,13 +32,15 @@ void AddRegisterCommand(CLI::App& app, RegisterArgs& a) {
   agl->excludes(alt);
   c->add_option("--sensors", a.sensors, "Compass/inclinometer readings (JSON, DESIGN.md) used as priors");
   auto* hfov = c->add_option("--hfov", a.hfov, "Known horizontal opening angle, degrees (searched within +-3%)");
-  auto* range = c->add_option("--hfov-range", a.hfov_range, "Opening angles to search, MIN:MAX degrees (default 10:120)");
+  auto* range =
+      c->add_option("--hfov-range", a.hfov_range, "Opening angles to search, MIN:MAX degrees (default 10:120)");
   hfov->excludes(range);
   c->add_option("--step", a.step, "Azimuth step of the DEM horizon, degrees (360 / step whole)")->capture_default_str();
   c->add_option("--refraction", a.refraction, "Refraction coefficient k")->capture_default_str();
-  c->add_option("--max-distance", a.max_distance, "Terrain farther than this is ignored, metres")->capture_default_str();
+  c->add_option("--max-distance", a.max_distance, "Terrain farther than this is ignored, metres")
+      ->capture_default_str();
   c->add_option("--initial", a.initial,
-                 "Known approximate pose AZ,PITCH,ROLL,HFOV (degrees): refine it instead of searching (fixed cameras)");
+                "Known approximate pose AZ,PITCH,ROLL,HFOV (degrees): refine it instead of searching (fixed cameras)");
   c->add_flag("--no-exif", a.no_exif, "Ignore the photo's EXIF (GPS, focal length, direction)");
   c->add_option("--json", a.json, "Write the JSON here instead of stdout");
   c->add_option("--overlay", a.overlay, "Draw the overlay at the recovered pose over the photo into this PNG");
@@ -61,8 +63,7 @@ std::pair<double, double> ParseRange(const std::string& s) {
   } catch (const std::exception&) {
     throw InvalidArgument("--hfov-range '" + s + "': expected MIN:MAX in degrees, e.g. 30:60");
   }
-  if (!(lo > 0 && hi >= lo && hi < 170))
-    throw InvalidArgument("--hfov-range '" + s + "': need 0 < MIN <= MAX < 170");
+  if (!(lo > 0 && hi >= lo && hi < 170)) throw InvalidArgument("--hfov-range '" + s + "': need 0 < MIN <= MAX < 170");
   return {lo, hi};
 }
 
@@ -85,10 +86,11 @@ int RunRegister(const RegisterArgs& a) {
 
   std::optional<double> lat = a.lat, lon = a.lon;
   std::string position_source = "arguments";
-  if (!lat && sensors.lat_deg && sensors.lon_deg) lat = sensors.lat_deg, lon = sensors.lon_deg, position_source = "sensors";
+  if (!lat && sensors.lat_deg && sensors.lon_deg)
+    lat = sensors.lat_deg, lon = sensors.lon_deg, position_source = "sensors";
   if (!lat && exif.lat_deg && exif.lon_deg) lat = exif.lat_deg, lon = exif.lon_deg, position_source = "exif";
-  if (!lat) throw InvalidArgument("register: no camera position: give --lat and --lon ('" + a.image +
-                                  "' has no GPS EXIF)");
+  if (!lat)
+    throw InvalidArgument("register: no camera position: give --lat and --lon ('" + a.image + "' has no GPS EXIF)");
   if (!(std::abs(*lat) <= 90.0) || !(std::abs(*lon) <= 360.0)) throw InvalidArgument("register: invalid --lat/--lon");
   std::optional<double> agl = a.agl, alt = a.alt;
   if (!agl && !alt && sensors.agl_m) agl = sensors.agl_m;

@@ -94,7 +94,8 @@ int RunTrack(const TrackArgs& a) {
     const std::filesystem::path out(a.output);
     const std::string ext = out.extension().string();
     video_tmp = (out.parent_path() / ("." + out.stem().string() + ".part" + ext)).string();
-    const int fourcc = ext == ".avi" ? cv::VideoWriter::fourcc('M', 'J', 'P', 'G') : cv::VideoWriter::fourcc('m', 'p', '4', 'v');
+    const int fourcc =
+        ext == ".avi" ? cv::VideoWriter::fourcc('M', 'J', 'P', 'G') : cv::VideoWriter::fourcc('m', 'p', '4', 'v');
     writer.open(video_tmp, fourcc, fps, frame.size());
     if (!writer.isOpened()) throw IoError("track: cannot write video '" + a.output + "' (use .mp4 or .avi)");
   }
@@ -194,10 +195,12 @@ int RunTrack(const TrackArgs& a) {
   if (!a.poses.empty()) WriteOutput(a.poses, csv.str());
   if (!a.calibration_out.empty() && tracker.calibration()) tracker.calibration()->Save(a.calibration_out);
   const double ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-  std::fprintf(stderr, "horizonreg track: %d frames in %.0f ms (%.1f fps): vision %d, tracked %d, sensors %d, none %d\n",
-               index, ms, index * 1000.0 / ms, counts[0], counts[1], counts[2], counts[3]);
+  std::fprintf(stderr,
+               "horizonreg track: %d frames in %.0f ms (%.1f fps): vision %d, tracked %d, sensors %d, none %d\n", index,
+               ms, index * 1000.0 / ms, counts[0], counts[1], counts[2], counts[3]);
   if (tracker.calibration())
-    std::fprintf(stderr, "  calibration: compass %+.2f deg %+.3f deg/s, pitch %+.2f deg, roll %+.2f deg (%d visual poses)\n",
+    std::fprintf(stderr,
+                 "  calibration: compass %+.2f deg %+.3f deg/s, pitch %+.2f deg, roll %+.2f deg (%d visual poses)\n",
                  tracker.calibration()->compass_offset_deg, tracker.calibration()->compass_drift_deg_per_s,
                  tracker.calibration()->pitch_offset_deg, tracker.calibration()->roll_offset_deg,
                  tracker.calibration()->samples);

@@ -10,8 +10,8 @@
 namespace horizonreg {
 
 std::optional<PaperHypothesis> PaperHypothesisFromPairs(const ImagePoint& p1, const ImagePoint& p2,
-                                                         const HorizonPoint& h1, const HorizonPoint& h2, double cx,
-                                                         double cy) {
+                                                        const HorizonPoint& h1, const HorizonPoint& h2, double cx,
+                                                        double cy) {
   const double x1 = p1.x - cx, x2 = p2.x - cx;
   // Image y grows downwards; the paper's y grows upwards with elevation.
   const double y1 = cy - p1.y, y2 = cy - p2.y;
@@ -27,8 +27,8 @@ std::optional<PaperHypothesis> PaperHypothesisFromPairs(const ImagePoint& p1, co
   if (beta2 < -kPi / 2) beta2 += kPi;
   h.azimuth_deg = WrapAzimuthDeg(h2.azimuth_deg - RadToDeg(beta2));
   // Eq. (8): C_x = dx / (2 cos((alpha_1 + alpha_2 - 2 alpha_c) / 2) sin(da / 2)), pixels per radian.
-  const double mean_offset = DegToRad(0.5 * (AngDiffDeg(h1.azimuth_deg, h.azimuth_deg) +
-                                             AngDiffDeg(h2.azimuth_deg, h.azimuth_deg)));
+  const double mean_offset =
+      DegToRad(0.5 * (AngDiffDeg(h1.azimuth_deg, h.azimuth_deg) + AngDiffDeg(h2.azimuth_deg, h.azimuth_deg)));
   h.cx_px_per_deg = DegToRad(dx / (2.0 * std::cos(mean_offset) * std::sin(da / 2.0)));
   // Eq. (9): C_y = dy / d(theta); eq. (6): theta_c = (theta_1 y2 - theta_2 y1) / dy.
   const double dtheta = h2.elevation_deg - h1.elevation_deg;
@@ -81,8 +81,7 @@ std::vector<PoseHypothesis> TwoPointPoses(const ImagePoint& p1, const ImagePoint
   const Eigen::Vector3d d1 = EnuOf(h1), d2 = EnuOf(h2);
   const double target = d1.dot(d2);
   const Eigen::Vector2d u1(p1.x - cx, p1.y - cy), u2(p2.x - cx, p2.y - cy);
-  if ((u1 - u2).norm() < 1e-9 || target > 1.0 - 1e-12 || !(min_focal_px > 0 && max_focal_px > min_focal_px))
-    return out;
+  if ((u1 - u2).norm() < 1e-9 || target > 1.0 - 1e-12 || !(min_focal_px > 0 && max_focal_px > min_focal_px)) return out;
   // cos(angle) = (a + F) / sqrt((b + F)(c + F)) with F = f^2: squared, a
   // quadratic in F; keep the roots where a + F has the sign of the cosine.
   const double pa = u1.dot(u2), pb = u1.squaredNorm(), pc = u2.squaredNorm(), t2 = target * target;

@@ -36,8 +36,8 @@ struct PaperHypothesis {
 // degenerate (same column, same azimuth, x2 = 0, opposite order or more than
 // 180 degrees apart). Thread-safe.
 std::optional<PaperHypothesis> PaperHypothesisFromPairs(const ImagePoint& p1, const ImagePoint& p2,
-                                                         const HorizonPoint& h1, const HorizonPoint& h2, double cx,
-                                                         double cy);
+                                                        const HorizonPoint& h1, const HorizonPoint& h2, double cx,
+                                                        double cy);
 
 struct PoseHypothesis {
   CameraPose pose;
@@ -52,7 +52,7 @@ struct PoseHypothesis {
 // rays onto both directions (triad on the bisectors). Empty when no focal
 // length in the range fits. Principal point (cx, cy). Thread-safe.
 std::vector<PoseHypothesis> TwoPointPoses(const ImagePoint& p1, const ImagePoint& p2, const HorizonPoint& h1,
-                                           const HorizonPoint& h2, double cx, double cy, double min_focal_px,
-                                           double max_focal_px);
+                                          const HorizonPoint& h2, double cx, double cy, double min_focal_px,
+                                          double max_focal_px);
 
 }  // namespace horizonreg

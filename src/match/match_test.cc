@@ -120,7 +120,7 @@ TEST(PaperHypothesis, Eq6And9GivePitchAndCy) {
   const auto p1 = Project(pose, f, w, h, h1), p2 = Project(pose, f, w, h, h2);
   const auto hyp = PaperHypothesisFromPairs(p1, p2, h1, h2, w / 2.0, h / 2.0);
   ASSERT_TRUE(hyp);
-  EXPECT_NEAR(hyp->pitch_deg, 2.0, 0.05);                              // linearised: small error
+  EXPECT_NEAR(hyp->pitch_deg, 2.0, 0.05);  // linearised: small error
   EXPECT_NEAR(hyp->cy_px_per_deg / (f * kPi / 180.0), 1.0, 0.02);
   EXPECT_NEAR(AngDiffDeg(hyp->azimuth_deg, pose.azimuth_deg), 0.0, 0.05);
 }

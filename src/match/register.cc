@@ -265,8 +265,8 @@ Refined RefineLeastSquares(const Scorer& scorer, const std::vector<Column>& cols
   auto reweight = [&] {
     const Eigen::Matrix3d m = CamFromEnuRad(p[0], p[1], p[2]);
     for (size_t i = 0; i < cols.size(); ++i) {
-      const double r = ColumnResidual<double>(m, p[3], cols[i], cols[i].fit_weight, scorer.cx(), scorer.cy(),
-                                              scorer.horizon());
+      const double r =
+          ColumnResidual<double>(m, p[3], cols[i], cols[i].fit_weight, scorer.cx(), scorer.cy(), scorer.horizon());
       sqrt_w[i] = 1.0 / std::sqrt(1.0 + r * r / c2);
     }
   };
@@ -301,8 +301,8 @@ Refined RefineLeastSquares(const Scorer& scorer, const std::vector<Column>& cols
   double ss = 0.0, sw = 0.0;
   int n = 0;
   for (size_t i = 0; i < cols.size(); ++i) {
-    const double res = ColumnResidual<double>(m, p[3], cols[i], cols[i].fit_weight, scorer.cx(), scorer.cy(),
-                                              scorer.horizon());
+    const double res =
+        ColumnResidual<double>(m, p[3], cols[i], cols[i].fit_weight, scorer.cx(), scorer.cy(), scorer.horizon());
     if (std::abs(res) < tau) {
       ss += res * res * sqrt_w[i] * sqrt_w[i];
       sw += sqrt_w[i] * sqrt_w[i];
@@ -416,7 +416,8 @@ PaperCorrection CorrectLinear(const Scorer& scorer, const std::vector<Column>& c
 
 double PriorPenalty(const SensorPrior& prior, const CameraPose& pose) {
   double chi2 = 0.0;
-  if (prior.compass_deg) chi2 += std::pow(AngDiffDeg(pose.azimuth_deg, *prior.compass_deg) / prior.compass_sigma_deg, 2);
+  if (prior.compass_deg)
+    chi2 += std::pow(AngDiffDeg(pose.azimuth_deg, *prior.compass_deg) / prior.compass_sigma_deg, 2);
   if (prior.pitch_deg) chi2 += std::pow((pose.pitch_deg - *prior.pitch_deg) / prior.inclinometer_sigma_deg, 2);
   if (prior.roll_deg) chi2 += std::pow((pose.roll_deg - *prior.roll_deg) / prior.inclinometer_sigma_deg, 2);
   return chi2;
@@ -425,7 +426,8 @@ double PriorPenalty(const SensorPrior& prior, const CameraPose& pose) {
 bool WithinPrior(const RegistrationOptions& o, const CameraPose& pose) {
   const SensorPrior& pr = o.prior;
   const double g = pr.gate_sigmas;
-  if (pr.compass_deg && std::abs(AngDiffDeg(pose.azimuth_deg, *pr.compass_deg)) > g * pr.compass_sigma_deg) return false;
+  if (pr.compass_deg && std::abs(AngDiffDeg(pose.azimuth_deg, *pr.compass_deg)) > g * pr.compass_sigma_deg)
+    return false;
   if (pr.pitch_deg && std::abs(pose.pitch_deg - *pr.pitch_deg) > g * pr.inclinometer_sigma_deg + 1.0) return false;
   if (pr.roll_deg) return std::abs(pose.roll_deg - *pr.roll_deg) <= g * pr.inclinometer_sigma_deg + 1.0;
   return std::abs(pose.roll_deg) <= o.max_abs_roll_deg;
@@ -599,9 +601,7 @@ Registration Register(const Skyline& skyline, const HorizonProfile& horizon, con
   const double fmin = 0.5 * width / std::tan(DegToRad(options.max_hfov_deg) / 2.0);
   const double fmax = 0.5 * width / std::tan(DegToRad(options.min_hfov_deg) / 2.0);
   const double step = horizon.azimuth_step_deg;
-  auto dem_point = [&](const Extremum& e) {
-    return HorizonPoint{e.position * step, e.value};
-  };
+  auto dem_point = [&](const Extremum& e) { return HorizonPoint{e.position * step, e.value}; };
   std::vector<Eigen::Vector3d> dem_dirs;
   for (const Extremum& e : dem) {
     const double az = DegToRad(e.position * step), el = DegToRad(e.value);
@@ -631,25 +631,25 @@ Registration Register(const Skyline& skyline, const HorizonProfile& horizon, con
           const double cos_dem = DirectionOf(da).dot(DirectionOf(db));
           if (cos_dem < cos_range.first || cos_dem > cos_range.second) continue;
           for (const PoseHypothesis& hyp : TwoPointPoses(p1, p2, dem_point(da), dem_point(db), cx, cy, fmin, fmax)) {
-          const PoseHypothesis* h = &hyp;
-          // An image extremum cannot be more prominent than its DEM match
-          // (it is seen through a window of the horizon).
-          const double to_deg = RadToDeg(1.0 / h->focal_px);
-          if (da.prominence < 0.5 * ia.prominence * to_deg - 0.05 ||
-              db.prominence < 0.5 * ib.prominence * to_deg - 0.05)
-            continue;
-          if (!WithinPrior(options, h->pose)) continue;
-          ++out.hypotheses;
-          const Pose4 pose = Pose4::From(h->pose, h->focal_px);
-          const double bound = scored.size() >= 64 ? scored[63].cost : INFINITY;
-          const double cost = scorer.Cost(pose, coarse, bound);
-          if (!std::isfinite(cost)) continue;
-          scored.push_back({pose, cost});
-          if (scored.size() >= 256) {  // keep the best 64
-            std::partial_sort(scored.begin(), scored.begin() + 64, scored.end(),
-                              [](const Candidate& x, const Candidate& y) { return x.cost < y.cost; });
-            scored.resize(64);
-          }
+            const PoseHypothesis* h = &hyp;
+            // An image extremum cannot be more prominent than its DEM match
+            // (it is seen through a window of the horizon).
+            const double to_deg = RadToDeg(1.0 / h->focal_px);
+            if (da.prominence < 0.5 * ia.prominence * to_deg - 0.05 ||
+                db.prominence < 0.5 * ib.prominence * to_deg - 0.05)
+              continue;
+            if (!WithinPrior(options, h->pose)) continue;
+            ++out.hypotheses;
+            const Pose4 pose = Pose4::From(h->pose, h->focal_px);
+            const double bound = scored.size() >= 64 ? scored[63].cost : INFINITY;
+            const double cost = scorer.Cost(pose, coarse, bound);
+            if (!std::isfinite(cost)) continue;
+            scored.push_back({pose, cost});
+            if (scored.size() >= 256) {  // keep the best 64
+              std::partial_sort(scored.begin(), scored.begin() + 64, scored.end(),
+                                [](const Candidate& x, const Candidate& y) { return x.cost < y.cost; });
+              scored.resize(64);
+            }
           }
         }
       }

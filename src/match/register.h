@@ -17,51 +17,51 @@ namespace horizonreg {
 // Compass and inclinometer readings used as priors (DESIGN.md "Sensor
 // readings"). Any field may be absent.
 struct SensorPrior {
-  std::optional<double> compass_deg;      // azimuth of the optical axis, degrees
-  std::optional<double> pitch_deg;        // inclinometer pitch, degrees
-  std::optional<double> roll_deg;         // inclinometer roll, degrees (conventions.h)
-  double compass_sigma_deg = 15.0;        // 1-sigma compass error (phones: 5-30 deg), > 0
-  double inclinometer_sigma_deg = 2.0;    // 1-sigma inclinometer error, > 0
-  double gate_sigmas = 3.0;               // Hypotheses farther than this many sigmas are dropped, > 0.
+  std::optional<double> compass_deg;    // azimuth of the optical axis, degrees
+  std::optional<double> pitch_deg;      // inclinometer pitch, degrees
+  std::optional<double> roll_deg;       // inclinometer roll, degrees (conventions.h)
+  double compass_sigma_deg = 15.0;      // 1-sigma compass error (phones: 5-30 deg), > 0
+  double inclinometer_sigma_deg = 2.0;  // 1-sigma inclinometer error, > 0
+  double gate_sigmas = 3.0;             // Hypotheses farther than this many sigmas are dropped, > 0.
   void Check() const;
 };
 
 struct RegistrationOptions {
-  double min_hfov_deg = 10.0;        // Horizontal opening angles searched, degrees, 0 < min <= max < 170.
+  double min_hfov_deg = 10.0;  // Horizontal opening angles searched, degrees, 0 < min <= max < 170.
   double max_hfov_deg = 120.0;
-  double max_abs_roll_deg = 30.0;    // Hypotheses with more roll are dropped (without an inclinometer), degrees.
-  int image_extrema = 7;             // Most prominent image peaks and dips paired into hypotheses, >= 2.
-  int horizon_extrema = 70;          // Most prominent DEM peaks and dips of each kind, >= 2.
+  double max_abs_roll_deg = 30.0;        // Hypotheses with more roll are dropped (without an inclinometer), degrees.
+  int image_extrema = 7;                 // Most prominent image peaks and dips paired into hypotheses, >= 2.
+  int horizon_extrema = 70;              // Most prominent DEM peaks and dips of each kind, >= 2.
   double min_image_prominence_px = 1.5;  // Image extrema below this are noise, pixels (scaled up for large images).
   double min_horizon_prominence_deg = 0.03;  // DEM extrema below this are noise, degrees.
-  int coarse_columns = 24;           // Skyline columns scored per hypothesis, >= 8.
-  int quick_columns = 120;           // Skyline columns for refining candidates, >= 8.
-  int refine_columns = 300;          // Skyline columns in the final least squares, >= 8.
-  int candidates = 8;                // Distinct best hypotheses given the paper's linear corrections, >= 2.
-  int refined_candidates = 4;        // ... of which the best this many get the least squares, >= 2.
-  double inlier_px = 3.0;            // A column fits when within this many pixels (per 1000 px of image width).
+  int coarse_columns = 24;                   // Skyline columns scored per hypothesis, >= 8.
+  int quick_columns = 120;                   // Skyline columns for refining candidates, >= 8.
+  int refine_columns = 300;                  // Skyline columns in the final least squares, >= 8.
+  int candidates = 8;                        // Distinct best hypotheses given the paper's linear corrections, >= 2.
+  int refined_candidates = 4;                // ... of which the best this many get the least squares, >= 2.
+  double inlier_px = 3.0;                    // A column fits when within this many pixels (per 1000 px of image width).
   // The no-match decision (a wrong pose reported as registered is the worst outcome):
-  double min_visible_fraction = 0.15;    // of the image columns with a skyline value
-  double min_inlier_fraction = 0.80;     // of the visible columns within inlier_px at the refined pose
-  double max_rms_px = 1.5;               // RMS of the inlier columns (per 1000 px of width)
-  double min_ambiguity_ratio = 1.75;     // second-best distinct pose's cost over the best's
+  double min_visible_fraction = 0.15;  // of the image columns with a skyline value
+  double min_inlier_fraction = 0.80;   // of the visible columns within inlier_px at the refined pose
+  double max_rms_px = 1.5;             // RMS of the inlier columns (per 1000 px of width)
+  double min_ambiguity_ratio = 1.75;   // second-best distinct pose's cost over the best's
   SensorPrior prior;
   void Check() const;  // Throws InvalidArgument naming the field.
 };
 
 struct Registration {
   bool registered = false;
-  std::string message;            // why not registered, or a short summary
-  CameraPose pose;                // meaningful when a best pose exists (also for no_match, for diagnosis)
+  std::string message;  // why not registered, or a short summary
+  CameraPose pose;      // meaningful when a best pose exists (also for no_match, for diagnosis)
   double focal_px = 0.0;
   double hfov_deg = 0.0;
-  double rms_px = NAN;            // RMS distance of the inlier columns to the projected horizon (near field down-weighted)
-  double inlier_fraction = 0.0;   // visible columns within inlier_px, near-field columns (< ~400 m) down-weighted
-  double ex_px = NAN, ey_px = NAN;  // paper eq. (13), (14): RMS horizontal and vertical differences
-  double ambiguity_ratio = 0.0;   // cost of the best distinct alternative over the best's (inf if none)
+  double rms_px = NAN;  // RMS distance of the inlier columns to the projected horizon (near field down-weighted)
+  double inlier_fraction = 0.0;         // visible columns within inlier_px, near-field columns (< ~400 m) down-weighted
+  double ex_px = NAN, ey_px = NAN;      // paper eq. (13), (14): RMS horizontal and vertical differences
+  double ambiguity_ratio = 0.0;         // cost of the best distinct alternative over the best's (inf if none)
   double second_inlier_fraction = 0.0;  // share of the columns that alternative fits
   double azimuth_sigma_deg = NAN, pitch_sigma_deg = NAN, roll_sigma_deg = NAN, focal_sigma_px = NAN;
-  int hypotheses = 0;             // hypotheses scored after the constraints
+  int hypotheses = 0;  // hypotheses scored after the constraints
   int image_extrema = 0, horizon_extrema = 0;
   CameraIntrinsics Intrinsics(int width, int height) const;
 };

@@ -97,8 +97,7 @@ std::vector<Landmark> LoadLandmarks(const std::string& path) {
 }
 
 std::vector<ResolvedLandmark> ResolveLandmarks(const TerrainWindow& terrain, const GeodeticPoint& observer,
-                                               const std::vector<Landmark>& landmarks,
-                                               const LandmarkOptions& options) {
+                                               const std::vector<Landmark>& landmarks, const LandmarkOptions& options) {
   options.Check();
   const LocalFrame frame(observer);
   std::vector<ResolvedLandmark> out;

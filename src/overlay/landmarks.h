@@ -26,7 +26,7 @@ struct Landmark {
 std::vector<Landmark> LoadLandmarks(const std::string& path);
 
 struct LandmarkOptions {
-  double snap_radius_m = 600.0;       // Move a landmark to the highest DEM post within this distance, >= 0.
+  double snap_radius_m = 600.0;         // Move a landmark to the highest DEM post within this distance, >= 0.
   double visibility_margin_deg = 0.05;  // Terrain on the line of sight may rise this close to the summit's angle.
   double refraction = kDefaultRefraction;
   void Check() const;
@@ -34,9 +34,9 @@ struct LandmarkOptions {
 
 struct ResolvedLandmark {
   std::string name;
-  double lat_deg = 0.0, lon_deg = 0.0;  // after snapping
-  double height_m = 0.0;                // DEM height at the (snapped) summit, m
-  std::optional<double> ele_m;          // the file's elevation
+  double lat_deg = 0.0, lon_deg = 0.0;            // after snapping
+  double height_m = 0.0;                          // DEM height at the (snapped) summit, m
+  std::optional<double> ele_m;                    // the file's elevation
   double azimuth_deg = 0.0, elevation_deg = 0.0;  // as seen from the observer (refraction included)
   double distance_m = 0.0;                        // horizontal
   bool visible = false;                           // not hidden behind nearer terrain

@@ -79,8 +79,9 @@ void DrawAngularPolyline(Canvas& cv_, const std::vector<std::pair<double, double
 std::pair<double, double> AzimuthSpan(const Canvas& c, const CameraPose& pose) {
   double lo = 0, hi = 0;
   for (int i = 0; i <= 32; ++i)
-    for (const Eigen::Vector2d& px : {Eigen::Vector2d(c.k.width * i / 32.0, 0), Eigen::Vector2d(c.k.width * i / 32.0, c.k.height),
-                                     Eigen::Vector2d(0, c.k.height * i / 32.0), Eigen::Vector2d(c.k.width, c.k.height * i / 32.0)}) {
+    for (const Eigen::Vector2d& px :
+         {Eigen::Vector2d(c.k.width * i / 32.0, 0), Eigen::Vector2d(c.k.width * i / 32.0, c.k.height),
+          Eigen::Vector2d(0, c.k.height * i / 32.0), Eigen::Vector2d(c.k.width, c.k.height * i / 32.0)}) {
       const AzEl ae = AzElFromEnu(UnprojectToEnu(c.m, c.k, px));
       const double rel = AngDiffDeg(ae.azimuth_deg, pose.azimuth_deg);
       lo = std::min(lo, rel), hi = std::max(hi, rel);
@@ -141,7 +142,8 @@ OverlayResult DrawOverlay(const cv::Mat& image, const CameraPose& pose, const Ca
         prev = ok ? p : std::nullopt;
       }
     }
-    for (int a = static_cast<int>(std::ceil((pose.azimuth_deg + lo) / 10.0)) * 10; a <= pose.azimuth_deg + hi; a += 10) {
+    for (int a = static_cast<int>(std::ceil((pose.azimuth_deg + lo) / 10.0)) * 10; a <= pose.azimuth_deg + hi;
+         a += 10) {
       std::optional<Eigen::Vector2d> prev;
       for (double d = 3.0; d <= 500.0; d *= 1.15) {
         const auto p = ground(a, d);
@@ -160,8 +162,9 @@ OverlayResult DrawOverlay(const cv::Mat& image, const CameraPose& pose, const Ca
       if (std::abs(AngDiffDeg(az, pose.azimuth_deg)) > std::max(std::abs(lo), std::abs(hi))) continue;
       for (const Ridge& r : (*input.ridges)[i]) {
         const auto p = c.Project(az, r.elevation_deg);
-        if (p && c.Inside(*p, 0)) cv::circle(c.img, Fixed(*p), std::max(1, thin) << kShift, DistanceColour(r.distance_m),
-                                             cv::FILLED, cv::LINE_AA, kShift);
+        if (p && c.Inside(*p, 0))
+          cv::circle(c.img, Fixed(*p), std::max(1, thin) << kShift, DistanceColour(r.distance_m), cv::FILLED,
+                     cv::LINE_AA, kShift);
       }
     }
   }
@@ -178,7 +181,8 @@ OverlayResult DrawOverlay(const cv::Mat& image, const CameraPose& pose, const Ca
       }
       const auto p = c.Project(az, h.elevation_deg[b]);
       const bool ok = p && c.Inside(*p, 0.5 * k.width);
-      if (ok && prev && (*p - *prev).norm() < 0.5 * k.width) c.Line(*prev, *p, DistanceColour(h.distance_m[b]), c.thick);
+      if (ok && prev && (*p - *prev).norm() < 0.5 * k.width)
+        c.Line(*prev, *p, DistanceColour(h.distance_m[b]), c.thick);
       prev = ok ? p : std::nullopt;
     }
   }
@@ -204,8 +208,9 @@ OverlayResult DrawOverlay(const cv::Mat& image, const CameraPose& pose, const Ca
       const Eigen::Vector2d dir = (*q - *p).normalized() * (e % 10 == 0 ? 12.0 : 6.0) * scale;
       c.Line(*p - dir, *p + dir, cv::Scalar(0, 255, 255), thin);
       if (e % 10 == 0 && p->y() > tape_y + 20 * scale && p->y() < k.height - 40 * scale)
-        c.Text(std::to_string(e), cv::Point(static_cast<int>(p->x() + 15 * scale), static_cast<int>(p->y() + 5 * scale)),
-               0.8 * font, cv::Scalar(0, 255, 255));
+        c.Text(std::to_string(e),
+               cv::Point(static_cast<int>(p->x() + 15 * scale), static_cast<int>(p->y() + 5 * scale)), 0.8 * font,
+               cv::Scalar(0, 255, 255));
     }
   }
 
@@ -234,8 +239,9 @@ OverlayResult DrawOverlay(const cv::Mat& image, const CameraPose& pose, const Ca
 
   // Read-out box, bottom left.
   if (o.readout) {
-    std::vector<std::string> lines = {Format("azimuth %.2f", pose.azimuth_deg) + Format("   pitch %.2f", pose.pitch_deg) +
-                                          Format("   roll %.2f", pose.roll_deg) + Format("   hfov %.1f deg", k.HfovDeg())};
+    std::vector<std::string> lines = {Format("azimuth %.2f", pose.azimuth_deg) +
+                                      Format("   pitch %.2f", pose.pitch_deg) + Format("   roll %.2f", pose.roll_deg) +
+                                      Format("   hfov %.1f deg", k.HfovDeg())};
     if (!o.caption.empty()) lines.push_back(o.caption);
     int y = k.height - static_cast<int>(10 * scale);
     for (auto it = lines.rbegin(); it != lines.rend(); ++it) {
@@ -267,8 +273,8 @@ OverlayResult DrawOverlay(const cv::Mat& image, const CameraPose& pose, const Ca
     for (const Candidate& cand : cands) {
       const ResolvedLandmark& l = *cand.l;
       const double ele = l.ele_m.value_or(l.height_m);
-      std::string text = (l.name.empty() ? "" : l.name + "  ") + Format("%.0f m", ele) +
-                         Format("  %.1f km", l.distance_m / 1000.0);
+      std::string text =
+          (l.name.empty() ? "" : l.name + "  ") + Format("%.0f m", ele) + Format("  %.1f km", l.distance_m / 1000.0);
       const cv::Size sz = c.TextSize(text, font);
       const int x0 = std::clamp(static_cast<int>(cand.p.x() - sz.width / 2.0), 2, std::max(2, k.width - sz.width - 2));
       std::optional<cv::Rect> placed;

@@ -31,9 +31,9 @@ struct OverlayOptions {
 };
 
 struct OverlayInput {
-  const HorizonProfile* horizon = nullptr;                    // required
-  const std::vector<std::vector<Ridge>>* ridges = nullptr;    // optional, per horizon bin
-  std::vector<ResolvedLandmark> landmarks;                    // drawn when visible and in view
+  const HorizonProfile* horizon = nullptr;                  // required
+  const std::vector<std::vector<Ridge>>* ridges = nullptr;  // optional, per horizon bin
+  std::vector<ResolvedLandmark> landmarks;                  // drawn when visible and in view
 };
 
 // Draws the overlay over a copy of `image` (8-bit, 1/3/4 channels; the

@@ -106,7 +106,8 @@ TEST(DrawOverlay, ArtificialHorizonFollowsRoll) {
 TEST(LoadLandmarks, ReadsGeoJsonAndCsvAndRejectsGarbage) {
   const auto dir = std::filesystem::temp_directory_path();
   const auto gj = dir / "hr_landmarks.geojson", csv = dir / "hr_landmarks.csv", bad = dir / "hr_bad.csv";
-  std::ofstream(gj) << R"({"type":"FeatureCollection","features":[{"type":"Feature","properties":{"name":"A","ele":1234},
+  std::ofstream(gj)
+      << R"({"type":"FeatureCollection","features":[{"type":"Feature","properties":{"name":"A","ele":1234},
     "geometry":{"type":"Point","coordinates":[8.5,46.5]}}]})";
   std::ofstream(csv) << "name,lat,lon,ele\n\"Peak, North\",46.6,8.4,3000\nB,46.7,8.3\n";
   std::ofstream(bad) << "A,46.6,8.1\nB,46.6,eight\n";
@@ -136,8 +137,10 @@ TEST(ResolveLandmarks, SnapsToTheSummitAndFindsOcclusion) {
   const TerrainWindow w = testing::WindowOf(std::move(g));
   const GeodeticPoint eye = ResolveObserver(w, 46.0, 8.0, 1.7, std::nullopt);
   const auto r = ResolveLandmarks(w, eye,
-                                  {{"Near", 46.047, 8.002, 1900.0}, {"Far", 46.09, 8.0, 1800.0},
-                                   {"East", 46.031, 8.061, std::nullopt}, {"Outside", 10.0, 10.0, std::nullopt}},
+                                  {{"Near", 46.047, 8.002, 1900.0},
+                                   {"Far", 46.09, 8.0, 1800.0},
+                                   {"East", 46.031, 8.061, std::nullopt},
+                                   {"Outside", 10.0, 10.0, std::nullopt}},
                                   {});
   ASSERT_EQ(r.size(), 3u);
   EXPECT_TRUE(r[0].visible);

@@ -158,9 +158,10 @@ std::vector<std::vector<Span>> CastColumns(const ColumnCaster& caster, double az
 }
 
 cv::Vec3b Lookup(const std::vector<Span>& spans, double tan_el, bool flat_sky) {
-  if (spans.empty() || tan_el >= spans.back().tan_hi) return flat_sky ? cv::Vec3b(255, 0, 255) : ColumnCaster::Sky(tan_el);
-  const auto it = std::upper_bound(spans.begin(), spans.end(), tan_el,
-                                   [](double v, const Span& s) { return v < s.tan_hi; });
+  if (spans.empty() || tan_el >= spans.back().tan_hi)
+    return flat_sky ? cv::Vec3b(255, 0, 255) : ColumnCaster::Sky(tan_el);
+  const auto it =
+      std::upper_bound(spans.begin(), spans.end(), tan_el, [](double v, const Span& s) { return v < s.tan_hi; });
   return it->bgr;
 }
 

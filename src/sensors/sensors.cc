@@ -21,8 +21,7 @@ namespace {
 std::optional<double> Field(const nlohmann::json& j, const char* name, const std::string& source, double lo,
                             double hi) {
   if (!j.contains(name) || j[name].is_null()) return std::nullopt;
-  if (!j[name].is_number())
-    throw InvalidArgument("sensors: '" + source + "': field " + name + " is not a number");
+  if (!j[name].is_number()) throw InvalidArgument("sensors: '" + source + "': field " + name + " is not a number");
   const double v = j[name].get<double>();
   if (!(v >= lo && v <= hi)) {
     std::ostringstream m;
@@ -124,7 +123,8 @@ std::optional<SensorReading> SensorLog::ForFrame(int frame, double fps) const {
   const double t = frame / fps;
   const SensorLogEntry* best = nullptr;
   for (const SensorLogEntry& e : entries)
-    if (e.time_s && std::abs(*e.time_s - t) <= 0.5 / fps && (!best || std::abs(*e.time_s - t) < std::abs(*best->time_s - t)))
+    if (e.time_s && std::abs(*e.time_s - t) <= 0.5 / fps &&
+        (!best || std::abs(*e.time_s - t) < std::abs(*best->time_s - t)))
       best = &e;
   if (best) return best->reading;
   return std::nullopt;
@@ -223,7 +223,8 @@ SensorReading SensorCalibration::Apply(const SensorReading& raw, double time_s) 
 }
 
 void SensorCalibration::Save(const std::string& path) const {
-  nlohmann::json j = {{"compass_offset_deg", compass_offset_deg}, {"compass_drift_deg_per_s", compass_drift_deg_per_s},
+  nlohmann::json j = {{"compass_offset_deg", compass_offset_deg},
+                      {"compass_drift_deg_per_s", compass_drift_deg_per_s},
                       {"t0_s", t0_s},
                       {"pitch_offset_deg", pitch_offset_deg},
                       {"roll_offset_deg", roll_offset_deg},

@@ -3,21 +3,21 @@
 // and GPS (DESIGN.md "Sensor readings"), from a JSON file or the photo's EXIF.
 #pragma once
 
-#include <optional>
 #include <cmath>
+#include <optional>
 #include <string>
 #include <vector>
 
 namespace horizonreg {
 
 struct SensorReading {
-  std::optional<double> compass_deg;    // azimuth of the optical axis, clockwise from (true) north, degrees
-  std::optional<double> pitch_deg;      // inclinometer pitch, degrees, up positive
-  std::optional<double> roll_deg;       // inclinometer roll, degrees, right side down positive
+  std::optional<double> compass_deg;  // azimuth of the optical axis, clockwise from (true) north, degrees
+  std::optional<double> pitch_deg;    // inclinometer pitch, degrees, up positive
+  std::optional<double> roll_deg;     // inclinometer roll, degrees, right side down positive
   std::optional<double> lat_deg, lon_deg;
-  std::optional<double> alt_m;          // GPS altitude above mean sea level, metres
-  std::optional<double> agl_m;          // height above ground, metres
-  std::optional<double> focal_35mm;     // EXIF FocalLengthIn35mmFilm, millimetres
+  std::optional<double> alt_m;       // GPS altitude above mean sea level, metres
+  std::optional<double> agl_m;       // height above ground, metres
+  std::optional<double> focal_35mm;  // EXIF FocalLengthIn35mmFilm, millimetres
 };
 
 // Parses one reading from JSON text: fields compass_yaw_deg,
@@ -70,11 +70,11 @@ SensorLog ReadSensorLog(const std::string& path);
 struct SensorCalibration {
   double compass_offset_deg = 0.0, compass_drift_deg_per_s = 0.0, t0_s = 0.0;
   double pitch_offset_deg = 0.0, roll_offset_deg = 0.0;
-  int samples = 0;                                                    // visual poses used
+  int samples = 0;                                                        // visual poses used
   double compass_rms_deg = NAN, pitch_rms_deg = NAN, roll_rms_deg = NAN;  // residuals after calibration
   // A reading with the offsets applied (fields absent in `raw` stay absent).
   SensorReading Apply(const SensorReading& raw, double time_s) const;
-  void Save(const std::string& path) const;               // JSON; throws IoError
+  void Save(const std::string& path) const;                // JSON; throws IoError
   static SensorCalibration Load(const std::string& path);  // throws IoError / InvalidArgument
 };
 

@@ -63,8 +63,7 @@ std::vector<double> PredictedSkyline(const HorizonProfile& horizon, const Camera
   return y;
 }
 
-Skyline BandSkyline(const cv::Mat& frame, const std::vector<double>& predicted_y, double band_px,
-                    double min_contrast) {
+Skyline BandSkyline(const cv::Mat& frame, const std::vector<double>& predicted_y, double band_px, double min_contrast) {
   HR_CHECK(frame.type() == CV_8UC3) << "BandSkyline needs 8-bit BGR";
   HR_CHECK(static_cast<int>(predicted_y.size()) == frame.cols) << "one prediction per column";
   Skyline s;
@@ -90,7 +89,8 @@ Skyline BandSkyline(const cv::Mat& frame, const std::vector<double>& predicted_y
     int best = -1;
     for (int y = lo; y <= hi; ++y) {  // boundary between rows y-1 and y
       const int i = y - lo + 3;
-      const double above = (sum[i - 1] + sum[i - 2] + sum[i - 3]) / 3.0, below = (sum[i] + sum[i + 1] + sum[i + 2]) / 3.0;
+      const double above = (sum[i - 1] + sum[i - 2] + sum[i - 3]) / 3.0,
+                   below = (sum[i] + sum[i + 1] + sum[i + 2]) / 3.0;
       score[y - lo] = std::abs(above - below);
       if (best < 0 || score[y - lo] > score[best]) best = y - lo;
     }
