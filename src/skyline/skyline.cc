@@ -19,7 +19,7 @@ constexpr float kColourWeight = 0.25f;    // DP cost per misclassified pixel (ed
 constexpr float kEdgeAboveWeight = 0.5f;  // DP cost per delta E of sharp steps left above the boundary
 constexpr float kEdgeNoise = 4.0f;        // delta E of a step that is still noise or a soft cloud edge
 constexpr float kEdgeCap = 12.0f;
-constexpr float kSnowEdgeBoost = 2.0f;  // extra weight of a sharp step into white left above the boundary         //
+constexpr float kSnowEdgeBoost = 4.0f;  // extra weight of a sharp step into white left above the boundary         //
                                         // delta E above which a step counts as fully an edge
 
 inline int HistIndex(const cv::Vec3f& lab) {
@@ -165,32 +165,40 @@ cv::Mat BoundarySteps(const cv::Mat& lab_t) {
 
 // Cost of leaving the colour step at row y above the boundary: its excess
 // over the noise level, unless it leads (within 2 rows) into blue sky, as at
-// the sky dome's own horizon. Steps into white count: snow is sharp where
-// clouds are soft.
-cv::Mat EdgeAbovePenalty(const cv::Mat& steps_t, const cv::Mat& sky_t, const cv::Mat& lab_t) {
+// the sky dome's own horizon (`base`). A sharp step from blue into white is
+// snow when no blue sky follows below it (clouds fade in softly and have sky
+// under them): `extra` holds that boost, which the boundary pays only for
+// steps below the last blue-sky row above it (`blue`, 1 per such row).
+struct EdgePenalty {
+  cv::Mat base, extra;  // CV_32F, one row per image column
+  cv::Mat blue;         // CV_8U, 1 where the pixel is blue sky
+};
+
+EdgePenalty EdgeAbovePenalty(const cv::Mat& steps_t, const cv::Mat& sky_t, const cv::Mat& lab_t) {
   const int w = sky_t.rows, h = sky_t.cols;
-  cv::Mat pen(w, h, CV_32F);
-  std::vector<float> blue(h);  // blue-sky likeness, where a step's far side needs it
+  EdgePenalty pen{cv::Mat(w, h, CV_32F), cv::Mat(w, h, CV_32F), cv::Mat(w, h, CV_8U)};
+  std::vector<float> blue(h);  // blue-sky likeness
   for (int c = 0; c < w; ++c) {
     const float* e = steps_t.ptr<float>(c);
     const float* s = sky_t.ptr<float>(c);
     const cv::Vec3f* lab = lab_t.ptr<cv::Vec3f>(c);
-    float* out = pen.ptr<float>(c);
-    // Row k's blue-sky likeness is needed by the steps at k, k-1 and k-2.
+    float* base = pen.base.ptr<float>(c);
+    float* extra = pen.extra.ptr<float>(c);
+    uint8_t* is_blue = pen.blue.ptr<uint8_t>(c);
     for (int k = 0; k < h; ++k) {
-      const bool needed = e[k] > kEdgeNoise || (k >= 1 && e[k - 1] > kEdgeNoise) || (k >= 2 && e[k - 2] > kEdgeNoise);
-      blue[k] = needed ? s[k] * Sigmoid((-lab[k][2] - 8.0f) / 2.0f) : 0.0f;
+      blue[k] = s[k] > 0.05f && lab[k][2] < 0.0f ? s[k] * Sigmoid((-lab[k][2] - 8.0f) / 2.0f) : 0.0f;
+      is_blue[k] = blue[k] > 0.5f;
     }
     for (int y = 0; y < h; ++y) {
       if (e[y] <= kEdgeNoise) {
-        out[y] = 0.0f;
+        base[y] = extra[y] = 0.0f;
         continue;
       }
       const float blue_sky = std::max({blue[y], blue[std::min(y + 1, h - 1)], blue[std::min(y + 2, h - 1)]});
-      // A sharp step from blue into white is snow (clouds fade in softly).
       const cv::Vec3f& after = lab[std::min(y + 2, h - 1)];
       const float white = Sigmoid((after[0] - 80.0f) / 3.0f) * Sigmoid((6.0f - std::abs(after[2])) / 2.0f);
-      out[y] = (e[y] - kEdgeNoise) * (1.0f - blue_sky) * (1.0f + kSnowEdgeBoost * white);
+      base[y] = (e[y] - kEdgeNoise) * (1.0f - blue_sky);
+      extra[y] = base[y] * kSnowEdgeBoost * white;
     }
   }
   return pen;
@@ -199,10 +207,10 @@ cv::Mat EdgeAbovePenalty(const cv::Mat& steps_t, const cv::Mat& sky_t, const cv:
 // Globally best boundary (one y in [0, h] per column): misclassified pixels
 // (sky below or non-sky above) minus the colour step at the boundary, plus
 // `smoothness` per pixel of jump, around the slope expected from the roll.
-std::vector<int> SolveBoundary(const cv::Mat& sky_t, const cv::Mat& steps_t, const cv::Mat& penalty_t,
+std::vector<int> SolveBoundary(const cv::Mat& sky_t, const cv::Mat& steps_t, const EdgePenalty& penalty,
                                double smoothness, double edge_weight, double slope_px_per_col) {
   const int w = sky_t.rows, h = sky_t.cols, n = h + 1;
-  std::vector<float> prev(n), cur(n), data(n), tmp(n), pen(n + 1);
+  std::vector<float> prev(n), cur(n), data(n), tmp(n), pen(n + 1), pen_extra(n + 1);
   std::vector<int> arg(static_cast<size_t>(w) * n), targ(n);
   const float beta = static_cast<float>(smoothness), lambda = static_cast<float>(edge_weight);
   auto data_cost = [&](int c) {
@@ -215,12 +223,18 @@ std::vector<int> SolveBoundary(const cv::Mat& sky_t, const cv::Mat& steps_t, con
     // excess over the noise level, unless it leads into sky-coloured pixels
     // (within 2 rows). Steps within 2 rows above the boundary are its own
     // (the 4-tap step spreads an edge over 3 rows).
-    const float* p = penalty_t.ptr<float>(c);
-    pen[0] = 0;
-    for (int y = 0; y < h; ++y) pen[y + 1] = pen[y] + p[y];
+    const float* p = penalty.base.ptr<float>(c);
+    const float* px = penalty.extra.ptr<float>(c);
+    const uint8_t* blue = penalty.blue.ptr<uint8_t>(c);
+    pen[0] = pen_extra[0] = 0;
+    for (int y = 0; y < h; ++y) pen[y + 1] = pen[y] + p[y], pen_extra[y + 1] = pen_extra[y] + px[y];
     float above = 0;
+    int after_blue = 0;  // first row below the last blue-sky row above the boundary's margin
     for (int y = 0; y <= h; ++y) {
-      data[y] = kColourWeight * (above + below) + kEdgeAboveWeight * pen[std::max(0, y - 2)] - lambda * e[y];
+      const int top = std::max(0, y - 2);  // rows [0, top) lie above the boundary's own step
+      if (top > 0 && blue[top - 1]) after_blue = top;
+      const float snow = pen_extra[top] - pen_extra[std::min(after_blue, top)];
+      data[y] = kColourWeight * (above + below) + kEdgeAboveWeight * (pen[top] + snow) - lambda * e[y];
       if (y < h) above += 1.0f - s[y], below -= s[y];
     }
   };
