@@ -18,9 +18,8 @@ constexpr int kHistBins = 16;             // per CIELAB axis
 constexpr float kColourWeight = 0.25f;    // DP cost per misclassified pixel (edges weigh 1 per delta E)
 constexpr float kEdgeAboveWeight = 0.5f;  // DP cost per delta E of sharp steps left above the boundary
 constexpr float kEdgeNoise = 4.0f;        // delta E of a step that is still noise or a soft cloud edge
-constexpr float kEdgeCap = 12.0f;
-constexpr float kSnowEdgeBoost = 4.0f;  // extra weight of a sharp step into white left above the boundary         //
-                                        // delta E above which a step counts as fully an edge
+constexpr float kEdgeCap = 12.0f;         // delta E above which a step counts as fully an edge
+constexpr float kSnowEdgeBoost = 4.0f;    // extra weight of a sharp step into white (snow) left above the boundary
 
 inline int HistIndex(const cv::Vec3f& lab) {
   const int l = std::clamp(static_cast<int>(lab[0] * (kHistBins / 100.0f)), 0, kHistBins - 1);
