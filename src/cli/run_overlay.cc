@@ -9,6 +9,8 @@
 #include "cli/site.h"
 #include "overlay/overlay.h"
 #include "util/errors.h"
+#include "util/json.h"
+#include "util/text.h"
 
 namespace horizonreg::cli {
 
@@ -33,14 +35,7 @@ double Number(const nlohmann::json& j, const char* key, const std::string& path)
 }  // namespace
 
 CameraPoseFile ReadPoseFile(const std::string& path) {
-  std::ifstream f(path);
-  if (!f) throw IoError("pose: cannot open '" + path + "'");
-  nlohmann::json j;
-  try {
-    j = nlohmann::json::parse(f);
-  } catch (const nlohmann::json::exception& e) {
-    throw InvalidArgument("pose: '" + path + "' is not valid JSON (" + e.what() + ")");
-  }
+  const nlohmann::json j = ParseJson(ReadTextFile(path, "pose"), "pose", path);
   if (j.value("status", "registered") != "registered")
     throw InvalidArgument("pose: '" + path + "' holds no pose (status " + j.value("status", "") + ")");
   if (!j.contains("observer") || !j["observer"].is_object())

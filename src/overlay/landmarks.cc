@@ -9,6 +9,7 @@
 
 #include "util/angles.h"
 #include "util/errors.h"
+#include "util/json.h"
 #include "util/text.h"
 
 namespace horizonreg {
@@ -38,20 +39,11 @@ void CheckPosition(const std::string& path, const std::string& where, double lat
 }  // namespace
 
 std::vector<Landmark> LoadLandmarks(const std::string& path) {
-  std::ifstream f(path);
-  if (!f) throw IoError("landmarks: cannot open '" + path + "'");
-  std::stringstream ss;
-  ss << f.rdbuf();
-  const std::string text = ss.str();
+  const std::string text = ReadTextFile(path, "landmarks");
   std::vector<Landmark> out;
   const auto first = text.find_first_not_of(" \t\r\n\xEF\xBB\xBF");
   if (first != std::string::npos && text[first] == '{') {
-    nlohmann::json j;
-    try {
-      j = nlohmann::json::parse(text);
-    } catch (const nlohmann::json::exception& e) {
-      throw InvalidArgument("landmarks: '" + path + "' is not valid JSON (" + e.what() + ")");
-    }
+    const nlohmann::json j = ParseJson(text, "landmarks", path);
     if (!j.contains("features") || !j["features"].is_array())
       throw InvalidArgument("landmarks: '" + path + "' is not a GeoJSON FeatureCollection");
     int index = 0;

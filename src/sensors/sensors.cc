@@ -12,6 +12,7 @@
 
 #include "util/angles.h"
 #include "util/errors.h"
+#include "util/json.h"
 #include "util/text.h"
 
 namespace horizonreg {
@@ -34,12 +35,7 @@ std::optional<double> Field(const nlohmann::json& j, const char* name, const std
 }  // namespace
 
 SensorReading ParseSensorJson(const std::string& text, const std::string& source) {
-  nlohmann::json j;
-  try {
-    j = nlohmann::json::parse(text);
-  } catch (const nlohmann::json::exception& e) {
-    throw InvalidArgument("sensors: '" + source + "' is not valid JSON (" + e.what() + ")");
-  }
+  const nlohmann::json j = ParseJson(text, "sensors", source);
   if (!j.is_object()) throw InvalidArgument("sensors: '" + source + "' is not a JSON object");
   SensorReading r;
   r.compass_deg = Field(j, "compass_yaw_deg", source, -360.0, 720.0);
@@ -53,13 +49,7 @@ SensorReading ParseSensorJson(const std::string& text, const std::string& source
   return r;
 }
 
-SensorReading ReadSensorJson(const std::string& path) {
-  std::ifstream f(path);
-  if (!f) throw IoError("sensors: cannot open '" + path + "'");
-  std::stringstream ss;
-  ss << f.rdbuf();
-  return ParseSensorJson(ss.str(), path);
-}
+SensorReading ReadSensorJson(const std::string& path) { return ParseSensorJson(ReadTextFile(path, "sensors"), path); }
 
 namespace {
 
@@ -131,20 +121,11 @@ std::optional<SensorReading> SensorLog::ForFrame(int frame, double fps) const {
 }
 
 SensorLog ReadSensorLog(const std::string& path) {
-  std::ifstream f(path);
-  if (!f) throw IoError("sensors: cannot open '" + path + "'");
-  std::stringstream ss;
-  ss << f.rdbuf();
-  const std::string text = ss.str();
+  const std::string text = ReadTextFile(path, "sensors");
   SensorLog log;
   const auto first = text.find_first_not_of(" \t\r\n");
   if (first != std::string::npos && text[first] == '[') {
-    nlohmann::json j;
-    try {
-      j = nlohmann::json::parse(text);
-    } catch (const nlohmann::json::exception& e) {
-      throw InvalidArgument("sensors: '" + path + "' is not valid JSON (" + e.what() + ")");
-    }
+    const nlohmann::json j = ParseJson(text, "sensors", path);
     for (size_t i = 0; i < j.size(); ++i) {
       try {
         if (!j[i].is_object()) throw InvalidArgument("not an object");
@@ -244,14 +225,7 @@ void SensorCalibration::Save(const std::string& path) const {
 }
 
 SensorCalibration SensorCalibration::Load(const std::string& path) {
-  std::ifstream f(path);
-  if (!f) throw IoError("sensors: cannot open calibration '" + path + "'");
-  nlohmann::json j;
-  try {
-    j = nlohmann::json::parse(f);
-  } catch (const nlohmann::json::exception& e) {
-    throw InvalidArgument("sensors: calibration '" + path + "' is not valid JSON (" + e.what() + ")");
-  }
+  const nlohmann::json j = ParseJson(ReadTextFile(path, "sensors: calibration"), "sensors: calibration", path);
   SensorCalibration c;
   auto get = [&](const char* k, double& v) {
     if (!j.contains(k) || !j[k].is_number() || !std::isfinite(j[k].get<double>()))

@@ -4,9 +4,13 @@
 
 #include <cctype>
 #include <cmath>
+#include <fstream>
 #include <optional>
+#include <sstream>
 #include <string>
 #include <vector>
+
+#include "util/errors.h"
 
 namespace horizonreg {
 
@@ -48,6 +52,16 @@ inline std::vector<std::string> SplitCsvLine(const std::string& line) {
     }
   }
   return out;
+}
+
+// The whole file as text. Throws IoError "<what>: cannot open '<path>'".
+inline std::string ReadTextFile(const std::string& path, const std::string& what) {
+  std::ifstream f(path, std::ios::binary);
+  if (!f) throw IoError(what + ": cannot open '" + path + "'");
+  std::stringstream ss;
+  ss << f.rdbuf();
+  if (f.bad()) throw IoError(what + ": cannot read '" + path + "'");
+  return ss.str();
 }
 
 }  // namespace horizonreg

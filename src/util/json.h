@@ -1,0 +1,21 @@
+// SPDX-License-Identifier: MIT
+// JSON parsing of input files with the project's error messages.
+#pragma once
+
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "util/errors.h"
+
+namespace horizonreg {
+
+// Parses `text`; throws InvalidArgument "<what>: '<source>' is not valid JSON (<reason>)".
+inline nlohmann::json ParseJson(const std::string& text, const std::string& what, const std::string& source) {
+  try {
+    return nlohmann::json::parse(text);
+  } catch (const nlohmann::json::exception& e) {
+    throw InvalidArgument(what + ": '" + source + "' is not valid JSON (" + e.what() + ")");
+  }
+}
+
+}  // namespace horizonreg
