@@ -67,7 +67,7 @@ int RunOverlay(const OverlayArgs& a) {
   OverlayInput in{&horizon, a.no_ridges ? nullptr : &ridges,
                   OverlayLandmarks(site, horizon, a.landmarks, ho.refraction)};
   OverlayOptions o;
-  o.eye_height_m = std::max(0.1, site.observer.height_m - site.window.HeightAt(p.lat, p.lon).value_or(0.0));
+  o.eye_height_m = site.EyeAboveGroundM();
   WriteImage(a.output, DrawOverlay(image, p.pose, k, in, o).image);
   return 0;
 }

@@ -200,7 +200,7 @@ int RunRegister(const RegisterArgs& a) {
               << r.pitch_sigma_deg << " deg";
       OverlayOptions oo;
       oo.caption = caption.str();
-      oo.eye_height_m = std::max(0.1, site->observer.height_m - site->window.HeightAt(*lat, *lon).value_or(0.0));
+      oo.eye_height_m = site->EyeAboveGroundM();
       const auto ridges = ComputeRidges(site->window, site->observer, ho, RidgeOptions{});
       drawn = DrawOverlay(image, r.pose, r.Intrinsics(image.cols, image.rows),
                           {&profile, &ridges, OverlayLandmarks(*site, profile, a.landmarks, ho.refraction)}, oo)

@@ -62,7 +62,7 @@ int RunRender(const RenderArgs& a) {
   if (!a.no_overlay) {
     const auto ridges = ComputeRidges(site.window, site.observer, ho, RidgeOptions{});
     OverlayOptions o;
-    o.eye_height_m = std::max(0.1, site.observer.height_m - site.window.HeightAt(a.lat, a.lon).value_or(0.0));
+    o.eye_height_m = site.EyeAboveGroundM();
     o.caption = "predicted view (DEM render)";
     view = DrawOverlay(view, pose, k, {&horizon, &ridges, landmarks}, o).image;
   }

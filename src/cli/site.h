@@ -3,6 +3,7 @@
 // commands that need a DEM (horizon, register, overlay, render, demo).
 #pragma once
 
+#include <algorithm>
 #include <optional>
 #include <string>
 #include <vector>
@@ -17,6 +18,11 @@ namespace horizonreg::cli {
 struct Site {
   TerrainWindow window;
   GeodeticPoint observer;
+  // Eye height above the terrain under the observer, metres (at least 0.1):
+  // the overlay's ground-plane grid lies that far below the eye.
+  double EyeAboveGroundM() const {
+    return std::max(0.1, observer.height_m - window.HeightAt(observer.lat_deg, observer.lon_deg).value_or(0.0));
+  }
 };
 
 // Opens the DEM(s), reads the window within max_distance_m and resolves the

@@ -107,6 +107,19 @@ Skyline BandSkyline(const cv::Mat& frame, const std::vector<double>& predicted_y
   return s;
 }
 
+namespace {
+
+// 8-bit grey frames as BGR; anything else is returned as it is.
+cv::Mat AsBgr(const cv::Mat& frame) {
+  if (frame.type() != CV_8UC1) return frame;
+  const cv::Mat planes[3] = {frame, frame, frame};
+  cv::Mat bgr;
+  cv::merge(planes, 3, bgr);
+  return bgr;
+}
+
+}  // namespace
+
 Tracker::Tracker(const HorizonProfile& horizon, int width, int height, const TrackerOptions& options)
     : horizon_(horizon), width_(width), height_(height), options_(options) {
   options_.Check();
@@ -143,11 +156,7 @@ std::optional<Registration> Tracker::Track(const cv::Mat& frame) {
 
 std::optional<FramePose> Tracker::TrackFrom(const cv::Mat& frame_in, int index, const FramePose& neighbour) {
   if (neighbour.source != PoseSource::kVision && neighbour.source != PoseSource::kTracked) return std::nullopt;
-  cv::Mat frame = frame_in;
-  if (frame_in.type() == CV_8UC1) {
-    const cv::Mat planes[3] = {frame_in, frame_in, frame_in};
-    cv::merge(planes, 3, frame);
-  }
+  const cv::Mat frame = AsBgr(frame_in);
   if (frame.type() != CV_8UC3 || frame.cols != width_ || frame.rows != height_) return std::nullopt;
   const auto r = TrackAround(frame, neighbour.pose, neighbour.focal_px);
   if (!r) return std::nullopt;
@@ -202,13 +211,8 @@ std::optional<Registration> Tracker::RegisterFull(const cv::Mat& frame, const st
 FramePose Tracker::Process(const cv::Mat& frame_in, int index, const std::optional<SensorReading>& raw, double time_s) {
   if (frame_in.cols != width_ || frame_in.rows != height_)
     throw InvalidArgument("Tracker: frame " + std::to_string(index) + " has a different size");
-  cv::Mat frame = frame_in;
-  if (frame_in.type() == CV_8UC1) {
-    const cv::Mat planes[3] = {frame_in, frame_in, frame_in};
-    cv::merge(planes, 3, frame);
-  } else if (frame_in.type() != CV_8UC3) {
-    throw InvalidArgument("Tracker: frames must be 8-bit gray or BGR");
-  }
+  const cv::Mat frame = AsBgr(frame_in);
+  if (frame.type() != CV_8UC3) throw InvalidArgument("Tracker: frames must be 8-bit gray or BGR");
   const std::optional<SensorReading> calibrated =
       raw ? std::optional<SensorReading>(calibration_ ? calibration_->Apply(*raw, time_s) : *raw) : std::nullopt;
 
