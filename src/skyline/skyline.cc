@@ -20,6 +20,10 @@ constexpr float kEdgeAboveWeight = 0.5f;  // DP cost per delta E of sharp steps 
 constexpr float kEdgeNoise = 4.0f;        // delta E of a step that is still noise or a soft cloud edge
 constexpr float kEdgeCap = 12.0f;         // delta E above which a step counts as fully an edge
 constexpr float kSnowEdgeBoost = 4.0f;    // extra weight of a sharp step into white (snow) left above the boundary
+constexpr float kDeepBlueB = -25.0f;      // b* below which a pixel is saturated blue: sky, never terrain
+constexpr float kTopStepShare = 0.4f;     // refinement: the topmost step at least this share of the strongest wins
+constexpr float kTopStepMin = 5.0f;       // ... and at least this delta E (noise in the sky stays below)
+constexpr float kTreeGreen = 7.0f;        // -a* above which a dark boundary is a tree (dark shaded terrain is greyer)
 
 inline int HistIndex(const cv::Vec3f& lab) {
   const int l = std::clamp(static_cast<int>(lab[0] * (kHistBins / 100.0f)), 0, kHistBins - 1);
@@ -101,7 +105,7 @@ cv::Mat SkyScoreFromTopBand(const cv::Mat& lab_t) {
       const float warm = std::min(1.0f, Sigmoid((v[2] - 6.0f) / 2.0f) + Sigmoid((std::abs(v[1]) - 10.0f) / 2.0f));
       // Saturated blue is sky however dark (deep sky, sky below distant
       // terrain); haze on far ridges is paler than that.
-      const float deep_blue = Sigmoid((-v[2] - 25.0f) / 3.0f);
+      const float deep_blue = Sigmoid((kDeepBlueB - v[2]) / 3.0f);
       out[r] = std::max((1.0f - dark), deep_blue) * (1.0f - warm);
       if (v[2] < -8.0f && out[r] > 0.5f) ref = std::max(ref, v[0]);
     }
@@ -156,7 +160,11 @@ cv::Mat BoundarySteps(const cv::Mat& lab_t) {
       // Any clear edge may be the skyline, not only the strongest: the
       // reward saturates (a faint far ridge above a contrasty near one).
       const float mag = std::min(std::sqrt(d.dot(d)), kEdgeCap);
-      out[y] = d[0] > 2.0f ? 0.5f * mag : mag;
+      // A step down into saturated blue is within the sky (a cloud's base,
+      // the renderer's or a real sky's deep blue near the horizon): terrain
+      // below the skyline is never that blue, even far and hazy.
+      const float into_deep_blue = Sigmoid((kDeepBlueB - below[2]) / 3.0f);
+      out[y] = (d[0] > 2.0f ? 0.5f * mag : mag) * (1.0f - into_deep_blue);
     }
   }
   return e;
@@ -277,14 +285,27 @@ struct ColumnFit {
 ColumnFit RefineColumn(const cv::Mat& bgr, const LabConverter& to_lab, int x, double y0, int window) {
   const int h = bgr.rows;
   auto at = [&](int r) { return to_lab(bgr.at<cv::Vec3b>(std::clamp(r, 0, h - 1), x)); };
-  // Strongest step in the window.
-  int best = static_cast<int>(std::lround(y0));
+  // The topmost clear step in the window (the paper scans each column from
+  // the top for the first edge): a faint far ridge above a contrasty near
+  // one is the skyline.
+  std::vector<float> steps;
+  std::vector<int> rows;
   float best_step = -1;
   for (int r = static_cast<int>(std::lround(y0)) - window; r <= static_cast<int>(std::lround(y0)) + window; ++r) {
     if (r < 1 || r >= h) continue;
     const cv::Vec3f d = at(r) - at(r - 1);
-    const float m = std::sqrt(d.dot(d));
-    if (m > best_step) best_step = m, best = r;
+    steps.push_back(std::sqrt(d.dot(d)));
+    rows.push_back(r);
+    best_step = std::max(best_step, steps.back());
+  }
+  int best = static_cast<int>(std::lround(y0));
+  for (size_t i = 0; i < steps.size(); ++i) {
+    const bool local_max = (i == 0 || steps[i] >= steps[i - 1]) && (i + 1 == steps.size() || steps[i] >= steps[i + 1]);
+    if (local_max && steps[i] >= kTopStepShare * best_step && steps[i] >= kTopStepMin) {
+      best = rows[i];
+      break;
+    }
+    if (steps[i] == best_step) best = rows[i];  // no clear step: the strongest
   }
   ColumnFit fit;
   if (best_step < 0) return fit;
@@ -348,7 +369,7 @@ std::vector<uint8_t> FindOccluders(const std::vector<ColumnFit>& fits, int image
   }
   for (int x = 0; x < w; ++x) {
     const ColumnFit& f = fits[x];
-    const bool dark = f.ground_l < 12.0 || (f.ground_l < 35.0 && f.ground_l < 0.6 * typical_l && f.ground_green > 4.0);
+    const bool dark = f.ground_l < 12.0 || (f.ground_l < 35.0 && f.ground_l < 0.6 * typical_l && f.ground_green > kTreeGreen);
     if (std::isfinite(f.y) && dark) occluded[x] = 1;
   }
   return occluded;
