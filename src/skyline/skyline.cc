@@ -369,7 +369,8 @@ std::vector<uint8_t> FindOccluders(const std::vector<ColumnFit>& fits, int image
   }
   for (int x = 0; x < w; ++x) {
     const ColumnFit& f = fits[x];
-    const bool dark = f.ground_l < 12.0 || (f.ground_l < 35.0 && f.ground_l < 0.6 * typical_l && f.ground_green > kTreeGreen);
+    const bool dark =
+        f.ground_l < 12.0 || (f.ground_l < 35.0 && f.ground_l < 0.6 * typical_l && f.ground_green > kTreeGreen);
     if (std::isfinite(f.y) && dark) occluded[x] = 1;
   }
   return occluded;
