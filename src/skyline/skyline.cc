@@ -23,7 +23,8 @@ constexpr float kSnowEdgeBoost = 4.0f;    // extra weight of a sharp step into w
 constexpr float kDeepBlueB = -25.0f;      // b* below which a pixel is saturated blue: sky, never terrain
 constexpr float kTopStepShare = 0.4f;     // refinement: the topmost step at least this share of the strongest wins
 constexpr float kTopStepMin = 5.0f;       // ... and at least this delta E (noise in the sky stays below)
-constexpr float kTreeGreen = 7.0f;        // -a* above which a dark boundary is a tree (dark shaded terrain is greyer)
+constexpr double kFogSpreadRows = 2.4;  // median contrast / largest one-row step above which a faint boundary is a fade
+constexpr float kTreeGreen = 7.0f;      // -a* above which a dark boundary is a tree (dark shaded terrain is greyer)
 
 inline int HistIndex(const cv::Vec3f& lab) {
   const int l = std::clamp(static_cast<int>(lab[0] * (kHistBins / 100.0f)), 0, kHistBins - 1);
@@ -301,6 +302,7 @@ struct ColumnFit {
   double contrast = 0;      // delta E between the local sky and ground colours
   double ground_l = 0;      // lightness just below the boundary
   double ground_green = 0;  // -a* just below the boundary (positive = green)
+  double spread = 0;        // contrast / the largest one-row step: about 1-2 rows for an edge, more for a fade
 };
 
 // Sub-pixel boundary near row r0 of full-size column x: where the colour
@@ -338,6 +340,7 @@ ColumnFit RefineColumn(const cv::Mat& bgr, const LabConverter& to_lab, int x, do
   const cv::Vec3f d = sky - ground;
   const float dd = d.dot(d);
   fit.contrast = std::sqrt(dd);
+  fit.spread = best_step > 0 ? fit.contrast / best_step : 0;
   fit.ground_l = ground[0];
   fit.ground_green = -ground[1];
   if (dd < 1e-6f) return fit;
@@ -424,6 +427,7 @@ void SkylineOptions::Check() const {
   if (!(smoothness > 0.0)) fail("smoothness", smoothness, "> 0");
   if (!(edge_weight >= 0.0)) fail("edge_weight", edge_weight, ">= 0");
   if (!(min_contrast >= 0.0)) fail("min_contrast", min_contrast, ">= 0");
+  if (!(fog_contrast >= 0.0)) fail("fog_contrast", fog_contrast, ">= 0");
 }
 
 int Skyline::VisibleCount() const {
@@ -509,6 +513,26 @@ Skyline ExtractSkyline(const cv::Mat& image, const SkylineOptions& options) {
     if (!std::isfinite(f.y) || grown[x] || f.contrast < options.min_contrast) continue;
     out.y[x] = std::clamp(f.y, 0.0, static_cast<double>(image.rows));
     out.confidence[x] = std::clamp((f.contrast - options.min_contrast) / 20.0, 0.05, 1.0);
+  }
+  // Fog: where a horizon is seen against the sky, some of it stands out
+  // clearly; when even the clearest tenth of the boundary is faint and the
+  // boundary is soft, it is where near terrain fades into fog or whiteout,
+  // not the horizon (a faint but sharp far ridge in haze stays).
+  std::vector<double> contrasts, spreads;
+  for (int x = 0; x < image.cols; ++x)
+    if (std::isfinite(out.y[x])) contrasts.push_back(fits[x].contrast), spreads.push_back(fits[x].spread);
+  if (!contrasts.empty()) {
+    auto p90 = contrasts.begin() + (contrasts.size() * 9) / 10;
+    std::nth_element(contrasts.begin(), p90, contrasts.end());
+    auto mid = spreads.begin() + spreads.size() / 2;
+    std::nth_element(spreads.begin(), mid, spreads.end());
+    // A fade spreads its colour change over more rows than an edge, which
+    // the renderer or the lens smooths over ~2 rows per 1000 columns.
+    const double soft = kFogSpreadRows * std::max(1.0, image.cols / 1024.0);
+    if (*p90<options.fog_contrast&& * mid> soft) {
+      std::fill(out.y.begin(), out.y.end(), NAN);
+      std::fill(out.confidence.begin(), out.confidence.end(), 0.0);
+    }
   }
   return out;
 }

@@ -23,6 +23,7 @@ struct SkylineOptions {
   double smoothness = 1.5;              // DP cost per pixel of jump between neighbouring columns.
   double edge_weight = 1.0;             // DP reward per unit of colour step (CIELAB delta E) at the boundary.
   double min_contrast = 6.0;            // Columns whose sky/ground colours differ less (delta E) are null.
+  double fog_contrast = 18.0;           // All null when the clearest 10% of a soft boundary differ less (fog).
   void Check() const;                   // Throws InvalidArgument naming the field.
 };
 

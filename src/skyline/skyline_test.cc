@@ -65,6 +65,59 @@ TEST(ExtractSkyline, DarkTreeInFrontOfTheHorizonIsNull) {
   EXPECT_TRUE(std::isfinite(s.y[100]));
 }
 
+// Pale sky over a band of saturated blue sky (as near the horizon, or
+// below a cloud base) over terrain: the band is sky, the skyline is under it.
+TEST(ExtractSkyline, SaturatedBlueBandAboveTheTerrainIsSky) {
+  const int w = 512, h = 300, band_top = 140, ground_top = 148;
+  cv::Mat img(h, w, CV_8UC3);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x)
+      img.at<cv::Vec3b>(y, x) = y < band_top     ? cv::Vec3b(250, 234, 221)
+                                : y < ground_top ? cv::Vec3b(220, 160, 120)
+                                                 : cv::Vec3b(100, 125 + (x * 7 + y * 13) % 12, 105);
+  const Skyline s = ExtractSkyline(img, SkylineOptions{});
+  int good = 0;
+  for (int x = 0; x < w; ++x) good += std::isfinite(s.y[x]) && std::abs(s.y[x] - ground_top) <= 1.0;
+  EXPECT_GE(good, w * 95 / 100);
+}
+
+// A faint hazy far ridge above a contrasty near slope: the first clear edge
+// from the top is the skyline (the paper's scan), not the strongest one.
+TEST(ExtractSkyline, FaintFarRidgeAboveANearSlopeIsTheSkyline) {
+  const int w = 512, h = 300;
+  cv::Mat img(h, w, CV_8UC3);
+  std::vector<double> far(w), near(w);
+  for (int x = 0; x < w; ++x) far[x] = 120 + 6 * std::sin(x / 23.0), near[x] = far[x] + 6 + 0.02 * x;
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x)
+      img.at<cv::Vec3b>(y, x) = y < far[x]    ? cv::Vec3b(240, 222, 205)  // pale sky
+                                : y < near[x] ? cv::Vec3b(200, 195, 185)  // hazy far ridge
+                                              : cv::Vec3b(70, 125, 90);   // near green slope
+  const Skyline s = ExtractSkyline(img, SkylineOptions{});
+  int good = 0;
+  for (int x = 0; x < w; ++x) good += std::isfinite(s.y[x]) && std::abs(s.y[x] - std::ceil(far[x])) <= 1.5;
+  EXPECT_GE(good, w * 90 / 100);
+}
+
+// Fog: terrain fades into the fog colour over many rows and no horizon is
+// seen; the fade is not a skyline.
+TEST(ExtractSkyline, TerrainFadingIntoFogGivesAllNull) {
+  const int w = 512, h = 300;
+  cv::Mat img(h, w, CV_8UC3);
+  const cv::Vec3f fog(238, 232, 228), ground(110, 150, 125);
+  for (int y = 0; y < h; ++y) {
+    const float t = std::clamp((y - 150.0f) / 60.0f, 0.0f, 1.0f);  // 0 fog .. 1 terrain
+    for (int x = 0; x < w; ++x) {
+      const cv::Vec3f c = (1 - t) * fog + t * ground;
+      img.at<cv::Vec3b>(y, x) = cv::Vec3b(c[0], c[1], c[2]);
+    }
+  }
+  EXPECT_EQ(ExtractSkyline(img, SkylineOptions{}).VisibleCount(), 0);
+  SkylineOptions o;
+  o.fog_contrast = -1;
+  EXPECT_THROW(o.Check(), InvalidArgument);
+}
+
 }  // namespace
 }  // namespace horizonreg
 
@@ -95,8 +148,10 @@ double Within2Px(const std::filesystem::path& dir, const std::string& name) {
 TEST(ExtractSkyline, DevScenesStayWithinTwoPixels) {
   HR_REQUIRE_SHARED(shared);
   const auto dir = shared / "scenes" / "dev";
-  // Measured 99-100% on these (clear, clouds, haze; four DEMs).
-  for (const char* name : {"alps_00", "cascades_02", "cascades_03", "fuji_04", "rainier_01", "zion_01"}) {
+  // Measured 98-100% on these (clear, clouds, haze; four DEMs; alps_01's
+  // faint far ridge, rainier_00's deep-blue band under the pale sky).
+  for (const char* name :
+       {"alps_00", "alps_01", "cascades_02", "cascades_03", "fuji_04", "rainier_00", "rainier_01", "zion_01"}) {
     const double share = Within2Px(dir, name);
     std::printf("[ skyline ] %-12s %.1f%% of visible columns within 2 px\n", name, 100 * share);
     EXPECT_GE(share, 0.95) << name;
