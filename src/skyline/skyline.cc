@@ -53,6 +53,13 @@ class SigmoidTable {
   std::array<float, kN + 2> t_{};
 };
 
+// The q-quantile (0..1) of a non-empty sample (reorders it).
+double Quantile(std::vector<double>& v, double q) {
+  const auto it = v.begin() + std::min(v.size() - 1, static_cast<size_t>(q * v.size()));
+  std::nth_element(v.begin(), it, v.end());
+  return *it;
+}
+
 inline float Sigmoid(float x) {
   static const SigmoidTable table;
   return table(x);
@@ -315,22 +322,21 @@ ColumnFit RefineColumn(const cv::Mat& bgr, const LabConverter& to_lab, int x, do
   // one is the skyline.
   std::vector<float> steps;
   std::vector<int> rows;
+  int best = static_cast<int>(std::lround(y0));
   float best_step = -1;
   for (int r = static_cast<int>(std::lround(y0)) - window; r <= static_cast<int>(std::lround(y0)) + window; ++r) {
     if (r < 1 || r >= h) continue;
     const cv::Vec3f d = at(r) - at(r - 1);
     steps.push_back(std::sqrt(d.dot(d)));
     rows.push_back(r);
-    best_step = std::max(best_step, steps.back());
+    if (steps.back() > best_step) best_step = steps.back(), best = r;  // the strongest, if no step is clear
   }
-  int best = static_cast<int>(std::lround(y0));
   for (size_t i = 0; i < steps.size(); ++i) {
     const bool local_max = (i == 0 || steps[i] >= steps[i - 1]) && (i + 1 == steps.size() || steps[i] >= steps[i + 1]);
     if (local_max && steps[i] >= kTopStepShare * best_step && steps[i] >= kTopStepMin) {
       best = rows[i];
       break;
     }
-    if (steps[i] == best_step) best = rows[i];  // no clear step: the strongest
   }
   ColumnFit fit;
   if (best_step < 0) return fit;
@@ -388,11 +394,7 @@ std::vector<uint8_t> FindOccluders(const std::vector<ColumnFit>& fits, int image
   std::vector<double> lights;
   for (const ColumnFit& f : fits)
     if (std::isfinite(f.y)) lights.push_back(f.ground_l);
-  double typical_l = 0;
-  if (!lights.empty()) {
-    std::nth_element(lights.begin(), lights.begin() + lights.size() / 2, lights.end());
-    typical_l = lights[lights.size() / 2];
-  }
+  const double typical_l = lights.empty() ? 0.0 : Quantile(lights, 0.5);
   for (int x = 0; x < w; ++x) {
     const ColumnFit& f = fits[x];
     const bool dark =
@@ -522,14 +524,11 @@ Skyline ExtractSkyline(const cv::Mat& image, const SkylineOptions& options) {
   for (int x = 0; x < image.cols; ++x)
     if (std::isfinite(out.y[x])) contrasts.push_back(fits[x].contrast), spreads.push_back(fits[x].spread);
   if (!contrasts.empty()) {
-    auto p90 = contrasts.begin() + (contrasts.size() * 9) / 10;
-    std::nth_element(contrasts.begin(), p90, contrasts.end());
-    auto mid = spreads.begin() + spreads.size() / 2;
-    std::nth_element(spreads.begin(), mid, spreads.end());
+    const double clearest = Quantile(contrasts, 0.9), median_spread = Quantile(spreads, 0.5);
     // A fade spreads its colour change over more rows than an edge, which
     // the renderer or the lens smooths over ~2 rows per 1000 columns.
     const double soft = kFogSpreadRows * std::max(1.0, image.cols / 1024.0);
-    if (*p90<options.fog_contrast&& * mid> soft) {
+    if (clearest < options.fog_contrast && median_spread > soft) {
       std::fill(out.y.begin(), out.y.end(), NAN);
       std::fill(out.confidence.begin(), out.confidence.end(), 0.0);
     }
