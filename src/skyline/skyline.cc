@@ -87,14 +87,14 @@ class LabConverter {
     const float fz = F((0.019334f * r + 0.119193f * g + 0.950227f * b) / 1.088754f);
     return {116.0f * fy - 16.0f, 500.0f * (fx - fy), 200.0f * (fy - fz)};
   }
-  // CIELAB of the image, transposed (one row per image column).
-  cv::Mat ConvertTransposed(const cv::Mat& bgr) const {
-    cv::Mat lab_t(bgr.cols, bgr.rows, CV_32FC3);
+  // CIELAB of a whole 8-bit BGR image.
+  void Convert(const cv::Mat& bgr, cv::Mat& lab) const {
+    lab.create(bgr.rows, bgr.cols, CV_32FC3);
     for (int r = 0; r < bgr.rows; ++r) {
       const cv::Vec3b* in = bgr.ptr<cv::Vec3b>(r);
-      for (int c = 0; c < bgr.cols; ++c) lab_t.at<cv::Vec3f>(c, r) = (*this)(in[c]);
+      cv::Vec3f* out = lab.ptr<cv::Vec3f>(r);
+      for (int c = 0; c < bgr.cols; ++c) out[c] = (*this)(in[c]);
     }
-    return lab_t;
   }
 
  private:
@@ -108,9 +108,26 @@ class LabConverter {
   std::array<float, kLut + 2> f_{};
 };
 
+// The mean of each 2 x 2 block (a half-size image; an odd last row or
+// column averages what it has). cv::resize spends ~0.6 ms per call on this
+// for three-channel float images.
+void Halve(const cv::Mat& m, cv::Mat& out) {
+  const int rows = (m.rows + 1) / 2, cols = (m.cols + 1) / 2;
+  out.create(rows, cols, CV_32FC3);
+  for (int r = 0; r < rows; ++r) {
+    const cv::Vec3f* a = m.ptr<cv::Vec3f>(2 * r);
+    const cv::Vec3f* b = m.ptr<cv::Vec3f>(std::min(2 * r + 1, m.rows - 1));
+    cv::Vec3f* o = out.ptr<cv::Vec3f>(r);
+    for (int c = 0; c < cols; ++c) {
+      const int c1 = std::min(2 * c + 1, m.cols - 1);
+      o[c] = 0.25f * (a[2 * c] + a[c1] + b[2 * c] + b[c1]);
+    }
+  }
+}
+
 // Pass 1: sky likeness relative to the image's top band (assumed sky).
 // lab_t is transposed (one row per image column).
-cv::Mat SkyScoreFromTopBand(const cv::Mat& lab_t) {
+void SkyScoreFromTopBand(const cv::Mat& lab_t, cv::Mat& s) {
   const int w = lab_t.rows, h = lab_t.cols;
   const int band = std::max(2, h / 30);
   std::vector<float> ls;
@@ -121,7 +138,7 @@ cv::Mat SkyScoreFromTopBand(const cv::Mat& lab_t) {
     return v[v.size() / 2];
   };
   const float lm = median(ls);
-  cv::Mat s(w, h, CV_32F);
+  s.create(w, h, CV_32F);
   for (int c = 0; c < w; ++c) {
     const cv::Vec3f* row = lab_t.ptr<cv::Vec3f>(c);
     float* out = s.ptr<float>(c);
@@ -141,12 +158,11 @@ cv::Mat SkyScoreFromTopBand(const cv::Mat& lab_t) {
       if (v[2] < -8.0f && out[r] > 0.5f) ref = std::max(ref, v[0]);
     }
   }
-  return s;
 }
 
 // Pass 2: sky probability from colour histograms of the pixels above and
 // below a first boundary (class-balanced likelihood ratio).
-cv::Mat SkyScoreFromHistograms(const cv::Mat& lab_t, const std::vector<int>& boundary) {
+void SkyScoreFromHistograms(const cv::Mat& lab_t, const std::vector<int>& boundary, cv::Mat& s) {
   const int w = lab_t.rows, h = lab_t.cols;
   std::vector<float> sky(kHistBins * kHistBins * kHistBins, 1.0f), ground(sky.size(), 1.0f);
   double ns = sky.size(), ng = ground.size();
@@ -165,40 +181,43 @@ cv::Mat SkyScoreFromHistograms(const cv::Mat& lab_t, const std::vector<int>& bou
     const double ps = sky[i] / ns, pg = ground[i] / ng;
     p[i] = static_cast<float>(std::clamp(ps / (ps + pg), 0.02, 0.98));
   }
-  cv::Mat s(w, h, CV_32F);
+  s.create(w, h, CV_32F);
   for (int c = 0; c < w; ++c) {
     const cv::Vec3f* row = lab_t.ptr<cv::Vec3f>(c);
     float* out = s.ptr<float>(c);
     for (int r = 0; r < h; ++r) out[r] = p[HistIndex(row[r])];
   }
-  return s;
 }
 
 // Colour step between rows y-1 and y: delta E between the means of rows
 // (y, y+1) and (y-2, y-1) of the unblurred image, for y in [0, h]. Steps
 // where the upper side is darker count half (sky is usually the brighter
 // side). One row per image column.
-cv::Mat BoundarySteps(const cv::Mat& lab_t) {
+void BoundarySteps(const cv::Mat& lab_t, cv::Mat& e) {
   const int w = lab_t.rows, h = lab_t.cols;
-  cv::Mat e(w, h + 1, CV_32F, cv::Scalar(0));
+  e.create(w, h + 1, CV_32F);
   for (int c = 0; c < w; ++c) {
     const cv::Vec3f* row = lab_t.ptr<cv::Vec3f>(c);
     float* out = e.ptr<float>(c);
+    out[0] = out[h] = 0.0f;
     for (int y = 1; y < h; ++y) {
-      const cv::Vec3f below = 0.5f * (row[y] + row[std::min(y + 1, h - 1)]);
-      const cv::Vec3f above = 0.5f * (row[y - 1] + row[std::max(y - 2, 0)]);
-      const cv::Vec3f d = below - above;
+      const float* p0 = &row[std::max(y - 2, 0)][0];
+      const float* p1 = &row[y - 1][0];
+      const float* p2 = &row[y][0];
+      const float* p3 = &row[std::min(y + 1, h - 1)][0];
+      const float dl = 0.5f * (p2[0] + p3[0] - p0[0] - p1[0]), da = 0.5f * (p2[1] + p3[1] - p0[1] - p1[1]),
+                  below_b = 0.5f * (p2[2] + p3[2]), db = below_b - 0.5f * (p0[2] + p1[2]);
       // Any clear edge may be the skyline, not only the strongest: the
       // reward saturates (a faint far ridge above a contrasty near one).
-      const float mag = std::min(std::sqrt(d.dot(d)), kEdgeCap);
+      const float mag = std::min(std::sqrt(dl * dl + da * da + db * db), kEdgeCap);
       // A step down into saturated blue is within the sky (a cloud's base,
       // the renderer's or a real sky's deep blue near the horizon): terrain
-      // below the skyline is never that blue, even far and hazy.
-      const float into_deep_blue = Sigmoid((kDeepBlueB - below[2]) / 3.0f);
-      out[y] = (d[0] > 2.0f ? 0.5f * mag : mag) * (1.0f - into_deep_blue);
+      // below the skyline is never that blue, even far and hazy. (Above
+      // b* = kDeepBlueB + 24 the logistic is < 4e-4: skipped.)
+      const float into_deep_blue = below_b > kDeepBlueB + 24.0f ? 0.0f : Sigmoid((kDeepBlueB - below_b) / 3.0f);
+      out[y] = (dl > 2.0f ? 0.5f * mag : mag) * (1.0f - into_deep_blue);
     }
   }
-  return e;
 }
 
 // Cost of leaving the colour step at row y above the boundary: its excess
@@ -212,9 +231,11 @@ struct EdgePenalty {
   cv::Mat blue;         // CV_8U, 1 where the pixel is blue sky
 };
 
-EdgePenalty EdgeAbovePenalty(const cv::Mat& steps_t, const cv::Mat& sky_t, const cv::Mat& lab_t) {
+void EdgeAbovePenalty(const cv::Mat& steps_t, const cv::Mat& sky_t, const cv::Mat& lab_t, EdgePenalty& pen) {
   const int w = sky_t.rows, h = sky_t.cols;
-  EdgePenalty pen{cv::Mat(w, h, CV_32F), cv::Mat(w, h, CV_32F), cv::Mat(w, h, CV_8U)};
+  pen.base.create(w, h, CV_32F);
+  pen.extra.create(w, h, CV_32F);
+  pen.blue.create(w, h, CV_8U);
   std::vector<float> blue(h);  // blue-sky likeness
   for (int c = 0; c < w; ++c) {
     const float* e = steps_t.ptr<float>(c);
@@ -239,17 +260,16 @@ EdgePenalty EdgeAbovePenalty(const cv::Mat& steps_t, const cv::Mat& sky_t, const
       extra[y] = base[y] * kSnowEdgeBoost * white;
     }
   }
-  return pen;
 }
 
 // Globally best boundary (one y in [0, h] per column): misclassified pixels
 // (sky below or non-sky above) minus the colour step at the boundary, plus
 // `smoothness` per pixel of jump, around the slope expected from the roll.
 std::vector<int> SolveBoundary(const cv::Mat& sky_t, const cv::Mat& steps_t, const EdgePenalty& penalty,
-                               double smoothness, double edge_weight, double slope_px_per_col) {
+                               double smoothness, double edge_weight, double slope_px_per_col,
+                               std::vector<float>& acc) {
   const int w = sky_t.rows, h = sky_t.cols, n = h + 1;
   std::vector<float> prev(n), cur(n), data(n), tmp(n), pen(n + 1), pen_extra(n + 1);
-  std::vector<int> arg(static_cast<size_t>(w) * n), targ(n);
   const float beta = static_cast<float>(smoothness), lambda = static_cast<float>(edge_weight);
   auto data_cost = [&](int c) {
     const float* s = sky_t.ptr<float>(c);
@@ -278,29 +298,36 @@ std::vector<int> SolveBoundary(const cv::Mat& sky_t, const cv::Mat& steps_t, con
   };
   data_cost(0);
   prev = data;
-  int last_shift_total = 0;
+  acc.resize(static_cast<size_t>(w) * n);
+  std::copy(prev.begin(), prev.end(), acc.begin());
+  std::vector<int> shift(w, 0);  // rows the expected slope moves the boundary from column c - 1 to c
+  for (int c = 1; c < w; ++c)
+    shift[c] = static_cast<int>(std::lround(c * slope_px_per_col) - std::lround((c - 1) * slope_px_per_col));
   for (int c = 1; c < w; ++c) {
-    const int shift_total = static_cast<int>(std::lround(c * slope_px_per_col));
-    const int shift = shift_total - last_shift_total;
-    last_shift_total = shift_total;
-    // Shifted previous column, then an L1 distance transform with argmins.
-    for (int y = 0; y < n; ++y) {
-      const int src = std::clamp(y - shift, 0, h);
-      tmp[y] = prev[src];
-      targ[y] = src;
-    }
-    for (int y = 1; y < n; ++y)
-      if (tmp[y - 1] + beta < tmp[y]) tmp[y] = tmp[y - 1] + beta, targ[y] = targ[y - 1];
-    for (int y = n - 2; y >= 0; --y)
-      if (tmp[y + 1] + beta < tmp[y]) tmp[y] = tmp[y + 1] + beta, targ[y] = targ[y + 1];
+    // Shifted previous column, then an L1 distance transform (the argmins
+    // are recovered when tracing back).
+    for (int y = 0; y < n; ++y) tmp[y] = prev[std::clamp(y - shift[c], 0, h)];
+    for (int y = 1; y < n; ++y) tmp[y] = std::min(tmp[y], tmp[y - 1] + beta);
+    for (int y = n - 2; y >= 0; --y) tmp[y] = std::min(tmp[y], tmp[y + 1] + beta);
     data_cost(c);
-    int* a = arg.data() + static_cast<size_t>(c) * n;
-    for (int y = 0; y < n; ++y) cur[y] = tmp[y] + data[y], a[y] = targ[y];
+    for (int y = 0; y < n; ++y) cur[y] = tmp[y] + data[y];
     std::swap(prev, cur);
+    std::copy(prev.begin(), prev.end(), acc.begin() + static_cast<size_t>(c) * n);
   }
   std::vector<int> out(w);
   out[w - 1] = static_cast<int>(std::min_element(prev.begin(), prev.end()) - prev.begin());
-  for (int c = w - 1; c > 0; --c) out[c - 1] = arg[static_cast<size_t>(c) * n + out[c]];
+  for (int c = w - 1; c > 0; --c) {
+    // The previous column's row that reached out[c] most cheaply.
+    const float* a = acc.data() + static_cast<size_t>(c - 1) * n;
+    float best = INFINITY;
+    int best_src = 0;
+    for (int y = 0; y < n; ++y) {
+      const int src = std::clamp(y - shift[c], 0, h);
+      const float v = a[src] + beta * static_cast<float>(std::abs(out[c] - y));
+      if (v < best) best = v, best_src = src;
+    }
+    out[c - 1] = best_src;
+  }
   return out;
 }
 
@@ -404,6 +431,13 @@ std::vector<uint8_t> FindOccluders(const std::vector<ColumnFit>& fits, int image
   return occluded;
 }
 
+// Scratch images of one extraction (work size; `_h` at half of it).
+struct Workspace {
+  cv::Mat reduced, small, small_t, sharp_t, work_t, steps, sky, sharp_h, work_h, steps_h, sky_h;
+  EdgePenalty pen, pen_h;
+  std::vector<float> acc;
+};
+
 // The image as 8-bit BGR (grey and BGRA converted, BGR shared).
 cv::Mat ToBgr(const cv::Mat& image) {
   cv::Mat bgr;
@@ -453,37 +487,65 @@ Skyline ExtractSkyline(const cv::Mat& image, const SkylineOptions& options) {
 
   // Search at a bounded width, on a lightly blurred image.
   const double scale = std::min(1.0, static_cast<double>(options.max_work_width_px) / image.cols);
+  // Scratch images kept per thread: a video's frames reuse them instead of
+  // faulting in ~10 MB of fresh pages per frame (a third of the time).
+  thread_local Workspace ws;
   cv::Mat small;
-  if (scale < 1.0)
-    cv::resize(bgr, small, cv::Size(), scale, scale, cv::INTER_AREA);
-  else
+  double sx = 1.0, sy = 1.0;  // work-image pixels per full-size pixel, across and down
+  if (scale < 1.0) {
+    // Area averaging by a whole factor first (OpenCV's fast path; its
+    // general one took 30 ms for 4000 x 3000), then to the work size. The
+    // whole-factor step drops the last < k rows and columns.
+    int k = static_cast<int>(1.0 / scale);
+    if (bgr.rows / k < 8) k = 1;  // a thin strip: straight to the work size
+    cv::Mat source = bgr;
+    if (k >= 2) {
+      const cv::Mat crop = bgr(cv::Rect(0, 0, bgr.cols / k * k, bgr.rows / k * k));
+      cv::resize(crop, ws.reduced, cv::Size(crop.cols / k, crop.rows / k), 0, 0, cv::INTER_AREA);
+      source = ws.reduced;
+    }
+    if (source.cols <= options.max_work_width_px) {
+      small = source;
+    } else {
+      const cv::Size work(options.max_work_width_px,
+                          std::max(8, static_cast<int>(std::lround(source.rows * scale * k))));
+      cv::resize(source, ws.small, work, 0, 0, cv::INTER_AREA);
+      small = ws.small;
+    }
+    sx = static_cast<double>(small.cols) / (source.cols * (k >= 2 ? k : 1));
+    sy = static_cast<double>(small.rows) / (source.rows * (k >= 2 ? k : 1));
+  } else {
     small = bgr;
+  }
   // One row per image column; the Gaussian is symmetric, so blurring the
   // transposed image is transposing the blurred one.
-  const cv::Mat sharp_t = to_lab.ConvertTransposed(small);
-  cv::Mat work_t;
-  cv::GaussianBlur(sharp_t, work_t, cv::Size(5, 5), 1.0);
+
+  const cv::Mat& sharp_t = ws.sharp_t;
+  const cv::Mat& work_t = ws.work_t;
+  cv::transpose(small, ws.small_t);  // 8-bit: a quarter of the bytes of a float transpose
+  to_lab.Convert(ws.small_t, ws.sharp_t);
+  cv::GaussianBlur(sharp_t, ws.work_t, cv::Size(5, 5), 1.0);
 
   const double roll_rad = DegToRad(options.roll_hint_deg.value_or(0.0));
   const double slope = -std::tan(roll_rad);  // positive roll: the skyline rises to the right
-  const cv::Mat steps = BoundarySteps(sharp_t);
+  BoundarySteps(sharp_t, ws.steps);
   // Pass 1 only gives the first boundary that pass 2 learns the colours of
   // sky and ground from: at half the work size (a quarter of the time).
   std::vector<int> boundary(work_t.rows);
   {
-    cv::Mat sharp_h, work_h;
-    cv::resize(sharp_t, sharp_h, cv::Size(), 0.5, 0.5, cv::INTER_AREA);
-    cv::resize(work_t, work_h, cv::Size(), 0.5, 0.5, cv::INTER_AREA);
-    const cv::Mat steps_h = BoundarySteps(sharp_h);
-    const cv::Mat sky1 = SkyScoreFromTopBand(work_h);
-    const std::vector<int> half = SolveBoundary(sky1, steps_h, EdgeAbovePenalty(steps_h, sky1, work_h),
-                                                options.smoothness, options.edge_weight, slope);
+    Halve(sharp_t, ws.sharp_h);
+    Halve(work_t, ws.work_h);
+    BoundarySteps(ws.sharp_h, ws.steps_h);
+    SkyScoreFromTopBand(ws.work_h, ws.sky_h);
+    EdgeAbovePenalty(ws.steps_h, ws.sky_h, ws.work_h, ws.pen_h);
+    const std::vector<int> half =
+        SolveBoundary(ws.sky_h, ws.steps_h, ws.pen_h, options.smoothness, options.edge_weight, slope, ws.acc);
     for (int c = 0; c < work_t.rows; ++c)
       boundary[c] = std::min(work_t.cols, 2 * half[std::min(c / 2, static_cast<int>(half.size()) - 1)]);
   }
-  const cv::Mat sky2 = SkyScoreFromHistograms(work_t, boundary);
-  boundary =
-      SolveBoundary(sky2, steps, EdgeAbovePenalty(steps, sky2, work_t), options.smoothness, options.edge_weight, slope);
+  SkyScoreFromHistograms(work_t, boundary, ws.sky);
+  EdgeAbovePenalty(ws.steps, ws.sky, work_t, ws.pen);
+  boundary = SolveBoundary(ws.sky, ws.steps, ws.pen, options.smoothness, options.edge_weight, slope, ws.acc);
 
   // No sky: the region above the boundary must look like sky somewhere.
   const int ww = work_t.rows, wh = work_t.cols;
@@ -495,12 +557,12 @@ Skyline ExtractSkyline(const cv::Mat& image, const SkylineOptions& options) {
 
   // Refine each full-size column around the (interpolated) boundary.
   std::vector<ColumnFit> fits(image.cols);
-  const int window = static_cast<int>(std::ceil(1.0 / scale)) + 2;
+  const int window = static_cast<int>(std::ceil(1.0 / sy)) + 2;
   for (int x = 0; x < image.cols; ++x) {
-    const double wc = std::clamp((x + 0.5) * scale - 0.5, 0.0, ww - 1.0);
+    const double wc = std::clamp((x + 0.5) * sx - 0.5, 0.0, ww - 1.0);
     const int c0 = static_cast<int>(wc), c1 = std::min(c0 + 1, ww - 1);
     const double f = wc - c0;
-    const double yb = ((1 - f) * boundary[c0] + f * boundary[c1]) / scale;
+    const double yb = ((1 - f) * boundary[c0] + f * boundary[c1]) / sy;
     if (yb <= 1.0 || yb >= image.rows - 1.0) continue;  // no boundary inside the image
     fits[x] = RefineColumn(bgr, to_lab, x, yb, window);
   }

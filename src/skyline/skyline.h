@@ -39,7 +39,9 @@ struct Skyline {
 
 // Extracts the skyline of an 8-bit image (1, 3 or 4 channels, OpenCV BGR
 // order). A uniform, all-sky or all-ground image gives all-null output.
-// Throws InvalidArgument for an empty image or bad options. Thread-safe.
+// Throws InvalidArgument for an empty image or bad options. Thread-safe;
+// each thread keeps its scratch images (~10 MB at the default work width)
+// for its next call, so a video's frames do not fault in fresh memory.
 Skyline ExtractSkyline(const cv::Mat& image, const SkylineOptions& options);
 
 // Draws the skyline over the image (coloured by confidence, null columns
