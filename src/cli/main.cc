@@ -1,19 +1,30 @@
 // SPDX-License-Identifier: MIT
 // horizonreg: the command-line tool. Dispatches to one Run<Command>() per
 // subcommand and turns errors into one line on stderr and an exit code:
-// 0 success, 2 bad usage or unreadable/invalid input, 1 internal failure.
+// 0 success, 2 bad usage or unreadable/invalid input, 1 internal failure
+// (cli/guard.h). `track` runs in horizonreg-track (track_main.cc).
+#include <unistd.h>
+
 #include <CLI/CLI.hpp>
+#include <cerrno>
+#include <cstring>
+#include <filesystem>
 #include <iostream>
 
 #include "cli/commands.h"
-#include "util/errors.h"
+#include "cli/guard.h"
 
 namespace {
 
-std::string OneLine(std::string s) {
-  for (char& c : s)
-    if (c == '\n' || c == '\r') c = ' ';
-  return s;
+// Replaces this process by horizonreg-track (beside this executable) with
+// the same arguments; returns 1 with a message only when that fails.
+int ExecTrack(char** argv) {
+  std::error_code ec;
+  const std::filesystem::path self = std::filesystem::read_symlink("/proc/self/exe", ec);
+  const std::filesystem::path helper = (ec ? std::filesystem::path(argv[0]) : self).parent_path() / "horizonreg-track";
+  execv(helper.c_str(), argv);
+  std::cerr << "horizonreg: track needs " << helper.string() << ": " << std::strerror(errno) << "\n";
+  return 1;
 }
 
 }  // namespace
@@ -37,42 +48,16 @@ int main(int argc, char** argv) {
   cli::AddRenderCommand(app, render_args);
   cli::AddTrackCommand(app, track_args);
   cli::AddDemoCommand(app, demo_args);
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::CallForHelp& e) {
-    return app.exit(e);
-  } catch (const CLI::CallForAllHelp& e) {
-    return app.exit(e);
-  } catch (const CLI::CallForVersion& e) {
-    return app.exit(e);
-  } catch (const CLI::ParseError& e) {
-    std::cerr << "horizonreg: " << OneLine(e.what()) << " (see --help)\n";
-    return 2;
-  }
-  try {
+  if (const int code = cli::ParseOrExit(app, argc, argv); code >= 0) return code;
+  if (app.got_subcommand("track")) return ExecTrack(argv);  // checked here, run there
+  return cli::RunGuarded([&] {
     if (app.got_subcommand("horizon")) return cli::RunHorizon(horizon_args);
     if (app.got_subcommand("skyline")) return cli::RunSkyline(skyline_args);
     if (app.got_subcommand("register")) return cli::RunRegister(register_args);
     if (app.got_subcommand("overlay")) return cli::RunOverlay(overlay_args);
     if (app.got_subcommand("render")) return cli::RunRender(render_args);
-    if (app.got_subcommand("track")) return cli::RunTrack(track_args);
     if (app.got_subcommand("demo")) return cli::RunDemo(demo_args);
     std::cerr << "horizonreg: no command given (see --help)\n";
     return 2;
-  } catch (const InvalidArgument& e) {
-    std::cerr << "horizonreg: " << OneLine(e.what()) << "\n";
-    return 2;
-  } catch (const IoError& e) {
-    std::cerr << "horizonreg: " << OneLine(e.what()) << "\n";
-    return 2;
-  } catch (const std::bad_alloc&) {
-    std::cerr << "horizonreg: out of memory\n";
-    return 1;
-  } catch (const std::exception& e) {
-    std::cerr << "horizonreg: internal error: " << OneLine(e.what()) << "\n";
-    return 1;
-  } catch (...) {
-    std::cerr << "horizonreg: internal error of unknown type\n";
-    return 1;
-  }
+  });
 }
