@@ -22,6 +22,7 @@
 #include "overlay/overlay.h"
 #include "render/render.h"
 #include "skyline/skyline.h"
+#include "track/track.h"
 #include "util/angles.h"
 #include "util/errors.h"
 
@@ -109,7 +110,7 @@ int RunDemo(const DemoArgs& a) {
   const cv::Mat photo = ReadImage(view_path);
   const Skyline skyline = ExtractSkyline(photo, SkylineOptions{});
   const auto t4 = Clock::now();
-  const Registration r = Register(skyline, profile, RegistrationOptions{});
+  const Registration r = RegisterImage(photo, skyline, profile, RegistrationOptions{});
   const auto t5 = Clock::now();
 
   const std::string overlay_path = (std::filesystem::path(a.output_dir) / "demo_overlay.png").string();

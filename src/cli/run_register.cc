@@ -16,6 +16,7 @@
 #include "overlay/overlay.h"
 #include "sensors/sensors.h"
 #include "skyline/skyline.h"
+#include "track/track.h"
 #include "util/angles.h"
 #include "util/errors.h"
 
@@ -142,7 +143,7 @@ int RunRegister(const RegisterArgs& a) {
   const auto m0 = Clock::now();
   Registration r;
   if (a.initial.empty()) {
-    r = Register(skyline, profile, ro);
+    r = RegisterImage(image, skyline, profile, ro);  // with a second look at a near miss
   } else {
     double v[4];
     char tail = 0;
