@@ -166,13 +166,17 @@ void SkyScoreFromHistograms(const cv::Mat& lab_t, const std::vector<int>& bounda
   const int w = lab_t.rows, h = lab_t.cols;
   std::vector<float> sky(kHistBins * kHistBins * kHistBins, 1.0f), ground(sky.size(), 1.0f);
   double ns = sky.size(), ng = ground.size();
+  s.create(w, h, CV_32F);
   for (int c = 0; c < w; ++c) {
     const cv::Vec3f* row = lab_t.ptr<cv::Vec3f>(c);
+    float* bin = s.ptr<float>(c);  // each pixel's bin for now (exact in a float)
     for (int r = 0; r < h; ++r) {
+      const int i = HistIndex(row[r]);
+      bin[r] = static_cast<float>(i);
       if (r < boundary[c] - 2) {
-        sky[HistIndex(row[r])] += 1, ns += 1;
+        sky[i] += 1, ns += 1;
       } else if (r > boundary[c] + 2) {
-        ground[HistIndex(row[r])] += 1, ng += 1;
+        ground[i] += 1, ng += 1;
       }
     }
   }
@@ -181,11 +185,9 @@ void SkyScoreFromHistograms(const cv::Mat& lab_t, const std::vector<int>& bounda
     const double ps = sky[i] / ns, pg = ground[i] / ng;
     p[i] = static_cast<float>(std::clamp(ps / (ps + pg), 0.02, 0.98));
   }
-  s.create(w, h, CV_32F);
   for (int c = 0; c < w; ++c) {
-    const cv::Vec3f* row = lab_t.ptr<cv::Vec3f>(c);
     float* out = s.ptr<float>(c);
-    for (int r = 0; r < h; ++r) out[r] = p[HistIndex(row[r])];
+    for (int r = 0; r < h; ++r) out[r] = p[static_cast<int>(out[r])];
   }
 }
 
