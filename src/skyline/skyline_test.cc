@@ -19,7 +19,7 @@ cv::Mat SyntheticScene(int w, int h, std::vector<double>& truth) {
     for (int x = 0; x < w; ++x) {
       const bool sky = y + 0.5 < truth[x];
       img.at<cv::Vec3b>(y, x) =
-          sky ? cv::Vec3b(235, 200 - y / 8, 160 - y / 8) : cv::Vec3b(60, 120 + (x * 7 + y * 13) % 20, 70);
+          sky ? cv::Vec3b(235, 200 - 50 * y / h, 160 - 50 * y / h) : cv::Vec3b(60, 120 + (x * 7 + y * 13) % 20, 70);
     }
   return img;
 }
@@ -35,6 +35,26 @@ TEST(ExtractSkyline, FindsASyntheticSkylineWithinAPixel) {
   for (int x = 0; x < 640; ++x)
     if (std::isfinite(s.y[x]) && std::abs(s.y[x] - std::ceil(truth[x] - 0.5)) <= 1.0) ++good;
   EXPECT_GE(good, 620);
+}
+
+// Large and odd sizes take the whole-factor reduction (which drops the last
+// rows and columns) and then the resize to the work width; every column,
+// the last ones too, must map back to the right full-size rows. The same
+// image twice checks that the per-thread scratch images carry nothing over.
+TEST(ExtractSkyline, LargeOddSizedImagesMapBackToFullSizeRows) {
+  for (const auto& [w, h] : {std::pair{3001, 2003}, std::pair{1025, 683}, std::pair{1500, 601}}) {
+    std::vector<double> truth;
+    cv::Mat img = SyntheticScene(w, h, truth);
+    for (int pass = 0; pass < 2; ++pass) {
+      const Skyline s = ExtractSkyline(img, SkylineOptions{});
+      ASSERT_EQ(s.width, w);
+      int good = 0;
+      for (int x = 0; x < w; ++x)
+        if (std::isfinite(s.y[x]) && std::abs(s.y[x] - std::ceil(truth[x] - 0.5)) <= 1.0) ++good;
+      EXPECT_GE(good, 0.97 * w) << w << " x " << h << " pass " << pass;
+      for (int x = w - 3; x < w; ++x) EXPECT_NEAR(s.y[x], std::ceil(truth[x] - 0.5), 1.0) << w << " x " << h;
+    }
+  }
 }
 
 TEST(ExtractSkyline, UniformAllSkyAndAllGroundImagesGiveAllNull) {
