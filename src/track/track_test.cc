@@ -27,8 +27,14 @@ TEST(BandSkyline, FindsAStepInsideTheBandOnly) {
   EXPECT_EQ(none.VisibleCount(), 0);
 }
 
-// A ring of cones around the observer, rendered during a pan.
-TEST(Tracker, FollowsARenderedPanAndFallsBackToCalibratedSensors) {
+// A ring of nine cones 5-8 km around an observer at (46, 8), and its horizon
+// (0.1 deg bins, 30 km).
+struct ConeRing {
+  TerrainWindow window;
+  GeodeticPoint eye;
+  HorizonProfile horizon;
+};
+ConeRing MakeConeRing() {
   std::vector<std::function<double(double, double)>> cones;
   const double lat0 = 46.0, lon0 = 8.0;
   for (int i = 0; i < 9; ++i) {
@@ -41,12 +47,22 @@ TEST(Tracker, FollowsARenderedPanAndFallsBackToCalibratedSensors) {
     for (const auto& f : cones) h = std::max(h, f(lat, lon));
     return h;
   });
-  const TerrainWindow w = testing::WindowOf(std::move(g));
-  const GeodeticPoint eye = ResolveObserver(w, lat0, lon0, 1.7, std::nullopt);
+  ConeRing ring;
+  ring.window = testing::WindowOf(std::move(g));
+  ring.eye = ResolveObserver(ring.window, lat0, lon0, 1.7, std::nullopt);
   HorizonOptions ho;
   ho.azimuth_step_deg = 0.1;
   ho.max_distance_m = 30'000.0;
-  const HorizonProfile horizon = ComputeHorizon(w, eye, ho);
+  ring.horizon = ComputeHorizon(ring.window, ring.eye, ho);
+  return ring;
+}
+
+// The cone ring rendered during a pan.
+TEST(Tracker, FollowsARenderedPanAndFallsBackToCalibratedSensors) {
+  const ConeRing ring = MakeConeRing();
+  const TerrainWindow& w = ring.window;
+  const GeodeticPoint& eye = ring.eye;
+  const HorizonProfile& horizon = ring.horizon;
   RenderOptions ro;
   ro.max_distance_m = 30'000.0;
   const auto k = CameraIntrinsics::FromHfov(480, 320, 50.0);
@@ -76,29 +92,13 @@ TEST(Tracker, FollowsARenderedPanAndFallsBackToCalibratedSensors) {
   EXPECT_NEAR(tracker.calibration()->compass_offset_deg, 6.0, 0.1);
 }
 
-// The cone scene of the pan below, as a flat-coloured photo whose skyline
+// The cone ring as a flat-coloured photo whose skyline
 // extraction missed a snow field: in the left 21% of the columns the extracted
 // boundary lies 25 px low, at the snow's lower edge.
 class GuidedSkylineTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    std::vector<std::function<double(double, double)>> cones;
-    const double lat0 = 46.0, lon0 = 8.0;
-    for (int i = 0; i < 9; ++i) {
-      const double a = DegToRad(i * 37.0 + 5.0), d = 0.06 + 0.015 * (i % 3);
-      cones.push_back(testing::ConeHeight(lat0 + d * std::cos(a), lon0 + d * std::sin(a) / std::cos(DegToRad(lat0)),
-                                          500.0, 700.0 + 180.0 * (i % 4), 2500.0 + 400.0 * (i % 2)));
-    }
-    DemGrid g = testing::SynthesizeDem(46.15, 7.8, 1.0 / 1200, 500, 361, [&](double lat, double lon) {
-      double h = 500.0;
-      for (const auto& f : cones) h = std::max(h, f(lat, lon));
-      return h;
-    });
-    const TerrainWindow w = testing::WindowOf(std::move(g));
-    HorizonOptions ho;
-    ho.azimuth_step_deg = 0.1;
-    ho.max_distance_m = 30'000.0;
-    horizon = ComputeHorizon(w, ResolveObserver(w, lat0, lon0, 1.7, std::nullopt), ho);
+    horizon = MakeConeRing().horizon;
     const std::vector<double> truth_y = PredictedSkyline(horizon, truth, k);
     image = cv::Mat(k.height, k.width, CV_8UC3, cv::Scalar(230, 200, 170));  // sky
     skyline.width = k.width;
