@@ -63,6 +63,33 @@ std::vector<double> PredictedSkyline(const HorizonProfile& horizon, const Camera
   return y;
 }
 
+namespace {
+
+// The boundary r in [lo, hi] (between rows r - 1 and r) with the highest
+// score(r), and its y refined to sub-pixel by a parabola through its
+// neighbours' scores. lo <= hi. `scores` is scratch space.
+struct Step {
+  int row;
+  double y, score;
+};
+template <typename Score>
+Step StrongestStep(int lo, int hi, Score score, std::vector<double>& scores) {
+  scores.assign(hi - lo + 1, 0.0);
+  int best = 0;
+  for (int r = lo; r <= hi; ++r) {
+    scores[r - lo] = score(r);
+    if (scores[r - lo] > scores[best]) best = r - lo;
+  }
+  double y = lo + best;
+  if (best > 0 && best + 1 < static_cast<int>(scores.size())) {
+    const double a = scores[best - 1], b = scores[best], d = scores[best + 1], denom = a - 2 * b + d;
+    if (denom < 0) y += std::clamp(0.5 * (a - d) / denom, -0.5, 0.5);
+  }
+  return {lo + best, y, scores[best]};
+}
+
+}  // namespace
+
 Skyline BandSkyline(const cv::Mat& frame, const std::vector<double>& predicted_y, double band_px, double min_contrast) {
   HR_CHECK(frame.type() == CV_8UC3) << "BandSkyline needs 8-bit BGR";
   HR_CHECK(static_cast<int>(predicted_y.size()) == frame.cols) << "one prediction per column";
@@ -73,7 +100,7 @@ Skyline BandSkyline(const cv::Mat& frame, const std::vector<double>& predicted_y
   s.confidence.assign(frame.cols, 0.0);
   const int h = frame.rows;
   std::vector<int> sum;  // per row: B + G + R of this column
-  std::vector<double> score;
+  std::vector<double> scores;
   for (int c = 0; c < frame.cols; ++c) {
     const double p = predicted_y[c];
     if (!std::isfinite(p)) continue;
@@ -85,24 +112,16 @@ Skyline BandSkyline(const cv::Mat& frame, const std::vector<double>& predicted_y
       const cv::Vec3b& v = frame.at<cv::Vec3b>(r, c);
       sum[r - lo + 3] = v[0] + v[1] + v[2];
     }
-    score.assign(hi - lo + 1, 0.0);
-    int best = -1;
-    for (int y = lo; y <= hi; ++y) {  // boundary between rows y-1 and y
-      const int i = y - lo + 3;
-      const double above = (sum[i - 1] + sum[i - 2] + sum[i - 3]) / 3.0,
-                   below = (sum[i] + sum[i + 1] + sum[i + 2]) / 3.0;
-      score[y - lo] = std::abs(above - below);
-      if (best < 0 || score[y - lo] > score[best]) best = y - lo;
-    }
-    if (score[best] < min_contrast) continue;
-    double y = lo + best;
-    if (best > 0 && best + 1 < static_cast<int>(score.size())) {
-      const double a = score[best - 1], b = score[best], d = score[best + 1];
-      const double denom = a - 2 * b + d;
-      if (denom < 0) y += std::clamp(0.5 * (a - d) / denom, -0.5, 0.5);
-    }
+    const auto [row, y, contrast] = StrongestStep(
+        lo, hi,
+        [&](int r) {  // mean of the three rows above against the three below
+          const int i = r - lo + 3;
+          return std::abs((sum[i - 1] + sum[i - 2] + sum[i - 3]) / 3.0 - (sum[i] + sum[i + 1] + sum[i + 2]) / 3.0);
+        },
+        scores);
+    if (contrast < min_contrast) continue;
     s.y[c] = y;
-    s.confidence[c] = std::min(1.0, score[best] / (4.0 * std::max(1.0, min_contrast)));
+    s.confidence[c] = std::min(1.0, contrast / (4.0 * std::max(1.0, min_contrast)));
   }
   return s;
 }
@@ -290,7 +309,7 @@ std::optional<Registration> RecheckWithGuidedSkyline(const cv::Mat& image, const
   };
   Skyline guided = skyline;
   int reread = 0;
-  std::vector<double> step;
+  std::vector<double> scores;
   for (int c = 0; c < w; ++c) {
     const double p = pred[c], y = skyline.y[c];
     if (!std::isfinite(p) || !std::isfinite(y) || y - p <= tau) continue;  // fits, lies above, or is hidden
@@ -298,21 +317,11 @@ std::optional<Registration> RecheckWithGuidedSkyline(const cv::Mat& image, const
     const int lo = std::max(6, static_cast<int>(std::floor(p - 2 * tau)));
     const int hi = std::min({h - 3, static_cast<int>(std::ceil(p + 2 * tau)), static_cast<int>(std::floor(y - tau))});
     if (hi < lo) continue;
-    step.assign(hi - lo + 1, 0.0);
-    int best = -1;
-    for (int r = lo; r <= hi; ++r) {
-      step[r - lo] = cv::norm(mean3(r, c) - mean3(r - 3, c));
-      if (best < 0 || step[r - lo] > step[best]) best = r - lo;
-    }
-    const int r = lo + best;
-    if (step[best] < kMinStep || cv::norm(mean3(r - 3, c) - mean3(r - 6, c)) > 0.5 * kMinStep) continue;
-    double yr = r;
-    if (best > 0 && best + 1 < static_cast<int>(step.size())) {
-      const double a = step[best - 1], b = step[best], d = step[best + 1], denom = a - 2 * b + d;
-      if (denom < 0) yr += std::clamp(0.5 * (a - d) / denom, -0.5, 0.5);
-    }
+    const auto [r, yr, contrast] = StrongestStep(
+        lo, hi, [&](int row) { return cv::norm(mean3(row, c) - mean3(row - 3, c)); }, scores);
+    if (contrast < kMinStep || cv::norm(mean3(r - 3, c) - mean3(r - 6, c)) > 0.5 * kMinStep) continue;
     guided.y[c] = yr;
-    guided.confidence[c] = std::min(1.0, step[best] / (4.0 * kMinStep));
+    guided.confidence[c] = std::min(1.0, contrast / (4.0 * kMinStep));
     ++reread;
   }
   // A few columns would only give the refit a second chance at the same
