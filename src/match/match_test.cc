@@ -9,6 +9,7 @@
 #include "match/hypothesis.h"
 #include "match/register.h"
 #include "util/angles.h"
+#include "util/errors.h"
 
 namespace horizonreg {
 namespace {
@@ -230,6 +231,35 @@ TEST(Register, SurvivesNoiseAndAnOccluderSpike) {
   EXPECT_NEAR(r.pose.pitch_deg, pose.pitch_deg, 0.03);
   EXPECT_GT(r.azimuth_sigma_deg, 0.0);
   EXPECT_LT(r.azimuth_sigma_deg, 0.05);
+}
+
+// The hypotheses and candidates are shared out among threads; any count
+// gives the same answer, to the bit.
+TEST(Register, SameResultForAnyThreadCount) {
+  const HorizonProfile p = SyntheticHorizon(0.25);
+  const auto k = CameraIntrinsics::FromHfov(1024, 683, 45.0);
+  Skyline s = SkylineOf(p, {200.0, 0.8, 1.2}, k);
+  std::mt19937 rng(2);
+  std::normal_distribution<double> noise(0.0, 0.7);
+  for (double& y : s.y) y += noise(rng);
+  RegistrationOptions one;
+  one.num_threads = 1;
+  const Registration a = Register(s, p, one);
+  for (int threads : {2, 3, 7}) {
+    RegistrationOptions o;
+    o.num_threads = threads;
+    const Registration b = Register(s, p, o);
+    EXPECT_EQ(a.registered, b.registered) << threads;
+    EXPECT_EQ(a.hypotheses, b.hypotheses) << threads;
+    EXPECT_EQ(a.pose.azimuth_deg, b.pose.azimuth_deg) << threads;
+    EXPECT_EQ(a.pose.pitch_deg, b.pose.pitch_deg) << threads;
+    EXPECT_EQ(a.pose.roll_deg, b.pose.roll_deg) << threads;
+    EXPECT_EQ(a.focal_px, b.focal_px) << threads;
+    EXPECT_EQ(a.ambiguity_ratio, b.ambiguity_ratio) << threads;
+  }
+  RegistrationOptions none;
+  none.num_threads = 0;
+  EXPECT_THROW(none.Check(), InvalidArgument);
 }
 
 TEST(Register, FlatOrRepeatingHorizonGivesNoMatch) {

@@ -9,6 +9,7 @@
 #include <cmath>
 #include <numeric>
 #include <sstream>
+#include <thread>
 
 #include "geo/geodesy.h"
 #include "match/extrema.h"
@@ -55,6 +56,7 @@ void RegistrationOptions::Check() const {
   if (candidates < 2) fail("candidates", candidates, "candidates >= 2");
   if (quick_columns < 8) fail("quick_columns", quick_columns, "quick_columns >= 8");
   if (refined_candidates < 2) fail("refined_candidates", refined_candidates, "refined_candidates >= 2");
+  if (num_threads < 1) fail("num_threads", num_threads, "num_threads >= 1");
   if (!(inlier_px > 0.0)) fail("inlier_px", inlier_px, "inlier_px > 0");
   if (!(min_visible_fraction >= 0.0 && min_visible_fraction <= 1.0))
     fail("min_visible_fraction", min_visible_fraction, "0 <= f <= 1");
@@ -213,6 +215,16 @@ class Scorer {
   const HorizonLookup& horizon_;
   double cx_, cy_, tau2_;
 };
+
+// Runs work(t) for t in [0, workers) on that many threads (the caller's
+// among them) and waits for all.
+template <typename Work>
+void RunWorkers(int workers, Work work) {
+  std::vector<std::thread> pool;
+  for (int t = 1; t < workers; ++t) pool.emplace_back(work, t);
+  work(0);
+  for (std::thread& th : pool) th.join();
+}
 
 std::vector<Column> VisibleColumns(const Skyline& skyline) {
   std::vector<Column> all;
@@ -611,14 +623,29 @@ Registration Register(const Skyline& skyline, const HorizonProfile& horizon, con
 
   // Hypotheses: every pair of image extrema far enough apart against every
   // pair of DEM extrema of the same kinds whose angular separation a camera
-  // in the opening-angle range could show.
-  std::vector<Candidate> scored;
+  // in the opening-angle range could show. The image pairs are shared out
+  // among the threads; each keeps its best candidates (pruned against its own
+  // 64th best, which only drops hypotheses that cannot be among the best 64).
+  struct ImagePair {
+    size_t a, b;
+  };
+  std::vector<ImagePair> pairs;
   const double min_sep = width / 20.0;
-  for (size_t a = 0; a < img.size(); ++a) {
-    for (size_t b = a + 1; b < img.size(); ++b) {
-      const Extremum &ia = img[a], &ib = img[b];
+  for (size_t a = 0; a < img.size(); ++a)
+    for (size_t b = a + 1; b < img.size(); ++b)
+      if (img[b].position - img[a].position >= min_sep) pairs.push_back({a, b});
+  struct Scored {
+    std::vector<Candidate> candidates;
+    int hypotheses = 0;
+  };
+  const int workers = std::clamp(static_cast<int>(pairs.size()), 1, options.num_threads);
+  std::vector<Scored> parts(workers);
+  RunWorkers(workers, [&](int t) {
+    Scored& result = parts[t];
+    std::vector<Candidate>& scored = result.candidates;
+    for (size_t k = t; k < pairs.size(); k += workers) {
+      const Extremum &ia = img[pairs[k].a], &ib = img[pairs[k].b];
       const ImagePoint p1{ia.position + 0.5, -ia.value}, p2{ib.position + 0.5, -ib.value};
-      if (p2.x - p1.x < min_sep) continue;
       // The cosines of the angle between the two pixel rays over the focal
       // range: a DEM pair whose angle falls outside cannot be this pair.
       const std::pair<double, double> cos_range = RayCosineRange(p1, p2, cx, cy, fmin, fmax);
@@ -639,7 +666,7 @@ Registration Register(const Skyline& skyline, const HorizonProfile& horizon, con
                 db.prominence < 0.5 * ib.prominence * to_deg - 0.05)
               continue;
             if (!WithinPrior(options, h->pose)) continue;
-            ++out.hypotheses;
+            ++result.hypotheses;
             const Pose4 pose = Pose4::From(h->pose, h->focal_px);
             const double bound = scored.size() >= 64 ? scored[63].cost : INFINITY;
             const double cost = scorer.Cost(pose, coarse, bound);
@@ -654,6 +681,11 @@ Registration Register(const Skyline& skyline, const HorizonProfile& horizon, con
         }
       }
     }
+  });
+  std::vector<Candidate> scored;
+  for (const Scored& part : parts) {
+    out.hypotheses += part.hypotheses;
+    scored.insert(scored.end(), part.candidates.begin(), part.candidates.end());
   }
   std::sort(scored.begin(), scored.end(), [](const Candidate& x, const Candidate& y) { return x.cost < y.cost; });
   if (scored.empty()) {
@@ -671,34 +703,49 @@ Registration Register(const Skyline& skyline, const HorizonProfile& horizon, con
   }
   // Stage 1: the paper's linear corrections (eq. 11-14) on a few columns.
   std::vector<Column> quick = Subsample(all, options.quick_columns);
-  std::vector<PaperCorrection> corrections;
-  for (Candidate& c : distinct) {
-    const PaperCorrection pc = CorrectLinear(scorer, quick, c.pose, width, tau, horizon);
-    const double corrected = scorer.Cost(pc.pose, quick);
-    c.cost = scorer.Cost(c.pose, quick);
-    if (corrected < c.cost) c = {pc.pose, corrected};
-    corrections.push_back(pc);
-  }
+  std::vector<PaperCorrection> corrections(distinct.size(), PaperCorrection{});
+  const int stage_workers = std::clamp(static_cast<int>(distinct.size()), 1, options.num_threads);
+  RunWorkers(stage_workers, [&](int t) {
+    for (size_t i = t; i < distinct.size(); i += stage_workers) {
+      Candidate& c = distinct[i];
+      const PaperCorrection pc = CorrectLinear(scorer, quick, c.pose, width, tau, horizon);
+      const double corrected = scorer.Cost(pc.pose, quick);
+      c.cost = scorer.Cost(c.pose, quick);
+      if (corrected < c.cost) c = {pc.pose, corrected};
+      corrections[i] = pc;
+    }
+  });
   std::vector<size_t> by_cost(distinct.size());
   std::iota(by_cost.begin(), by_cost.end(), 0);
   std::sort(by_cost.begin(), by_cost.end(), [&](size_t x, size_t y) { return distinct[x].cost < distinct[y].cost; });
   // Stage 2: robust least squares for the best few, ranked on all columns.
+  const size_t n_refine = std::min(by_cost.size(), static_cast<size_t>(options.refined_candidates));
+  std::vector<std::optional<Candidate>> slots(n_refine);
+  const int refine_workers = std::clamp(static_cast<int>(n_refine), 1, options.num_threads);
+  RunWorkers(refine_workers, [&](int t) {
+    std::vector<Column> cols;  // weighted for each candidate's pose
+    for (size_t k = t; k < n_refine; k += refine_workers) {
+      const Candidate& c = distinct[by_cost[k]];
+      cols = quick;
+      scorer.Reweight(c.pose, cols);
+      const Refined r = RefineLeastSquares(scorer, cols, c.pose, tau, 2, false, 1.0);
+      Candidate rc{r.pose, 0.0};
+      const CameraPose cp = rc.pose.ToPose();
+      if (!WithinPrior(options, cp)) continue;
+      const double hfov = RadToDeg(2.0 * std::atan(0.5 * width / rc.pose.f));
+      if (hfov < options.min_hfov_deg * 0.95 || hfov > options.max_hfov_deg * 1.05) continue;
+      rc.cost = scorer.Cost(rc.pose, all) + 0.02 * PriorPenalty(options.prior, cp) * scorer.tau2() / 9.0;
+      rc.inliers = scorer.InlierFraction(rc.pose, all);
+      slots[k] = rc;
+    }
+  });
   std::vector<Candidate> refined;
   std::vector<PaperCorrection> refined_corrections;
-  for (size_t k = 0; k < by_cost.size() && static_cast<int>(k) < options.refined_candidates; ++k) {
-    const Candidate& c = distinct[by_cost[k]];
-    scorer.Reweight(c.pose, quick);
-    const Refined r = RefineLeastSquares(scorer, quick, c.pose, tau, 2, false, 1.0);
-    Candidate rc{r.pose, 0.0};
-    const CameraPose cp = rc.pose.ToPose();
-    if (!WithinPrior(options, cp)) continue;
-    const double hfov = RadToDeg(2.0 * std::atan(0.5 * width / rc.pose.f));
-    if (hfov < options.min_hfov_deg * 0.95 || hfov > options.max_hfov_deg * 1.05) continue;
-    rc.cost = scorer.Cost(rc.pose, all) + 0.02 * PriorPenalty(options.prior, cp) * scorer.tau2() / 9.0;
-    rc.inliers = scorer.InlierFraction(rc.pose, all);
-    refined.push_back(rc);
-    refined_corrections.push_back(corrections[by_cost[k]]);
-  }
+  for (size_t k = 0; k < n_refine; ++k)
+    if (slots[k]) {
+      refined.push_back(*slots[k]);
+      refined_corrections.push_back(corrections[by_cost[k]]);
+    }
   corrections = std::move(refined_corrections);
   if (refined.empty()) {
     out.message = "no refined hypothesis within the opening-angle range and priors";
