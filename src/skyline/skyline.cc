@@ -23,6 +23,7 @@ constexpr float kSnowEdgeBoost = 4.0f;    // extra weight of a sharp step into w
 constexpr float kDeepBlueB = -25.0f;      // b* below which a pixel is saturated blue: sky, never terrain
 constexpr float kTopStepShare = 0.4f;     // refinement: the topmost step at least this share of the strongest wins
 constexpr float kTopStepMin = 5.0f;       // ... and at least this delta E (noise in the sky stays below)
+constexpr int kStepColumns = 2;           // refinement: steps read from the column averaged with 2 on each side
 constexpr double kFogSpreadRows = 2.4;  // median contrast / largest one-row step above which a faint boundary is a fade
 constexpr float kTreeGreen = 7.0f;      // -a* above which a dark boundary is a tree (dark shaded terrain is greyer)
 
@@ -344,8 +345,26 @@ struct ColumnFit {
 // Sub-pixel boundary near row r0 of full-size column x: where the colour
 // crosses half way from the local sky colour to the local ground colour.
 ColumnFit RefineColumn(const cv::Mat& bgr, const LabConverter& to_lab, int x, double y0, int window) {
-  const int h = bgr.rows;
-  auto at = [&](int r) { return to_lab(bgr.at<cv::Vec3b>(std::clamp(r, 0, h - 1), x)); };
+  const int h = bgr.rows, centre = static_cast<int>(std::lround(y0));
+  // The column's colours over every row used below, converted once, and
+  // those of the column averaged with kStepColumns neighbours on each side:
+  // the steps that choose the boundary row are read from the average (pixel
+  // noise in the sky would otherwise pass for the topmost clear step), the
+  // crossing and the colours from the column itself.
+  const int first = centre - window - 5, last = centre + window + 4;
+  std::vector<cv::Vec3f> lab(last - first + 1), wide(last - first + 1);
+  const int c0 = std::max(0, x - kStepColumns), c1 = std::min(bgr.cols - 1, x + kStepColumns), n = c1 - c0 + 1;
+  for (int r = first; r <= last; ++r) {
+    const cv::Vec3b* row = bgr.ptr<cv::Vec3b>(std::clamp(r, 0, h - 1));
+    lab[r - first] = to_lab(row[x]);
+    cv::Vec3i sum(0, 0, 0);
+    for (int c = c0; c <= c1; ++c) sum += cv::Vec3i(row[c]);
+    cv::Vec3b mean;
+    for (int k = 0; k < 3; ++k) mean[k] = static_cast<uint8_t>((sum[k] + n / 2) / n);
+    wide[r - first] = to_lab(mean);
+  }
+  auto at = [&](int r) { return lab[r - first]; };
+  auto at_wide = [&](int r) { return wide[r - first]; };
   // The topmost clear step in the window (the paper scans each column from
   // the top for the first edge): a faint far ridge above a contrasty near
   // one is the skyline.
@@ -355,7 +374,7 @@ ColumnFit RefineColumn(const cv::Mat& bgr, const LabConverter& to_lab, int x, do
   float best_step = -1;
   for (int r = static_cast<int>(std::lround(y0)) - window; r <= static_cast<int>(std::lround(y0)) + window; ++r) {
     if (r < 1 || r >= h) continue;
-    const cv::Vec3f d = at(r) - at(r - 1);
+    const cv::Vec3f d = at_wide(r) - at_wide(r - 1);
     steps.push_back(std::sqrt(d.dot(d)));
     rows.push_back(r);
     if (steps.back() > best_step) best_step = steps.back(), best = r;  // the strongest, if no step is clear
