@@ -67,6 +67,8 @@ void RegistrationOptions::Check() const {
   prior.Check();
 }
 
+double ToleranceScale(int width) { return std::max(1.0, width / 1000.0); }
+
 CameraIntrinsics Registration::Intrinsics(int width, int height) const {
   CameraIntrinsics k = CameraIntrinsics::FromHfov(width, height, 60.0);
   k.focal_px = focal_px;
@@ -216,10 +218,14 @@ class Scorer {
   double cx_, cy_, tau2_;
 };
 
-// Runs work(t) for t in [0, workers) on that many threads (the caller's
-// among them) and waits for all.
-template <typename Work>
-void RunWorkers(int workers, Work work) {
+// Calls fn(i, t) for every i in [0, n): item i on worker t = i mod W, with
+// W = min(n, max_workers) threads (the caller's among them); waits for all.
+template <typename Fn>
+void ParallelFor(size_t n, int max_workers, Fn fn) {
+  const int workers = static_cast<int>(std::clamp<size_t>(n, 1, max_workers));
+  auto work = [&](int t) {
+    for (size_t i = t; i < n; i += workers) fn(i, t);
+  };
   std::vector<std::thread> pool;
   for (int t = 1; t < workers; ++t) pool.emplace_back(work, t);
   work(0);
@@ -564,7 +570,7 @@ Registration Register(const Skyline& skyline, const HorizonProfile& horizon, con
   if (horizon.size() < 8) throw InvalidArgument("Register: horizon profile has fewer than 8 bins");
   const int width = skyline.width, height = skyline.height;
   const double cx = width / 2.0, cy = height / 2.0;
-  const double px_scale = std::max(1.0, width / 1000.0);
+  const double px_scale = ToleranceScale(width);
   const double tau = options.inlier_px * px_scale;
   Registration out;
 
@@ -638,45 +644,42 @@ Registration Register(const Skyline& skyline, const HorizonProfile& horizon, con
     std::vector<Candidate> candidates;
     int hypotheses = 0;
   };
-  const int workers = std::clamp(static_cast<int>(pairs.size()), 1, options.num_threads);
-  std::vector<Scored> parts(workers);
-  RunWorkers(workers, [&](int t) {
+  std::vector<Scored> parts(options.num_threads);
+  ParallelFor(pairs.size(), options.num_threads, [&](size_t k, int t) {
     Scored& result = parts[t];
     std::vector<Candidate>& scored = result.candidates;
-    for (size_t k = t; k < pairs.size(); k += workers) {
-      const Extremum &ia = img[pairs[k].a], &ib = img[pairs[k].b];
-      const ImagePoint p1{ia.position + 0.5, -ia.value}, p2{ib.position + 0.5, -ib.value};
-      // The cosines of the angle between the two pixel rays over the focal
-      // range: a DEM pair whose angle falls outside cannot be this pair.
-      const std::pair<double, double> cos_range = RayCosineRange(p1, p2, cx, cy, fmin, fmax);
-      for (const Extremum& da : dem) {
-        if (da.is_max != ia.is_max) continue;
-        for (const Extremum& db : dem) {
-          if (db.is_max != ib.is_max || &da == &db) continue;
-          const double sep = WrapAzimuthDeg((db.position - da.position) * step);
-          if (sep <= 0.0 || sep > options.max_hfov_deg) continue;
-          const double cos_dem = DirectionOf(da).dot(DirectionOf(db));
-          if (cos_dem < cos_range.first || cos_dem > cos_range.second) continue;
-          for (const PoseHypothesis& hyp : TwoPointPoses(p1, p2, dem_point(da), dem_point(db), cx, cy, fmin, fmax)) {
-            const PoseHypothesis* h = &hyp;
-            // An image extremum cannot be more prominent than its DEM match
-            // (it is seen through a window of the horizon).
-            const double to_deg = RadToDeg(1.0 / h->focal_px);
-            if (da.prominence < 0.5 * ia.prominence * to_deg - 0.05 ||
-                db.prominence < 0.5 * ib.prominence * to_deg - 0.05)
-              continue;
-            if (!WithinPrior(options, h->pose)) continue;
-            ++result.hypotheses;
-            const Pose4 pose = Pose4::From(h->pose, h->focal_px);
-            const double bound = scored.size() >= 64 ? scored[63].cost : INFINITY;
-            const double cost = scorer.Cost(pose, coarse, bound);
-            if (!std::isfinite(cost)) continue;
-            scored.push_back({pose, cost});
-            if (scored.size() >= 256) {  // keep the best 64
-              std::partial_sort(scored.begin(), scored.begin() + 64, scored.end(),
-                                [](const Candidate& x, const Candidate& y) { return x.cost < y.cost; });
-              scored.resize(64);
-            }
+    const Extremum &ia = img[pairs[k].a], &ib = img[pairs[k].b];
+    const ImagePoint p1{ia.position + 0.5, -ia.value}, p2{ib.position + 0.5, -ib.value};
+    // The cosines of the angle between the two pixel rays over the focal
+    // range: a DEM pair whose angle falls outside cannot be this pair.
+    const std::pair<double, double> cos_range = RayCosineRange(p1, p2, cx, cy, fmin, fmax);
+    for (const Extremum& da : dem) {
+      if (da.is_max != ia.is_max) continue;
+      for (const Extremum& db : dem) {
+        if (db.is_max != ib.is_max || &da == &db) continue;
+        const double sep = WrapAzimuthDeg((db.position - da.position) * step);
+        if (sep <= 0.0 || sep > options.max_hfov_deg) continue;
+        const double cos_dem = DirectionOf(da).dot(DirectionOf(db));
+        if (cos_dem < cos_range.first || cos_dem > cos_range.second) continue;
+        for (const PoseHypothesis& hyp : TwoPointPoses(p1, p2, dem_point(da), dem_point(db), cx, cy, fmin, fmax)) {
+          const PoseHypothesis* h = &hyp;
+          // An image extremum cannot be more prominent than its DEM match
+          // (it is seen through a window of the horizon).
+          const double to_deg = RadToDeg(1.0 / h->focal_px);
+          if (da.prominence < 0.5 * ia.prominence * to_deg - 0.05 ||
+              db.prominence < 0.5 * ib.prominence * to_deg - 0.05)
+            continue;
+          if (!WithinPrior(options, h->pose)) continue;
+          ++result.hypotheses;
+          const Pose4 pose = Pose4::From(h->pose, h->focal_px);
+          const double bound = scored.size() >= 64 ? scored[63].cost : INFINITY;
+          const double cost = scorer.Cost(pose, coarse, bound);
+          if (!std::isfinite(cost)) continue;
+          scored.push_back({pose, cost});
+          if (scored.size() >= 256) {  // keep the best 64
+            std::partial_sort(scored.begin(), scored.begin() + 64, scored.end(),
+                              [](const Candidate& x, const Candidate& y) { return x.cost < y.cost; });
+            scored.resize(64);
           }
         }
       }
@@ -704,16 +707,13 @@ Registration Register(const Skyline& skyline, const HorizonProfile& horizon, con
   // Stage 1: the paper's linear corrections (eq. 11-14) on a few columns.
   std::vector<Column> quick = Subsample(all, options.quick_columns);
   std::vector<PaperCorrection> corrections(distinct.size(), PaperCorrection{});
-  const int stage_workers = std::clamp(static_cast<int>(distinct.size()), 1, options.num_threads);
-  RunWorkers(stage_workers, [&](int t) {
-    for (size_t i = t; i < distinct.size(); i += stage_workers) {
-      Candidate& c = distinct[i];
-      const PaperCorrection pc = CorrectLinear(scorer, quick, c.pose, width, tau, horizon);
-      const double corrected = scorer.Cost(pc.pose, quick);
-      c.cost = scorer.Cost(c.pose, quick);
-      if (corrected < c.cost) c = {pc.pose, corrected};
-      corrections[i] = pc;
-    }
+  ParallelFor(distinct.size(), options.num_threads, [&](size_t i, int) {
+    Candidate& c = distinct[i];
+    const PaperCorrection pc = CorrectLinear(scorer, quick, c.pose, width, tau, horizon);
+    const double corrected = scorer.Cost(pc.pose, quick);
+    c.cost = scorer.Cost(c.pose, quick);
+    if (corrected < c.cost) c = {pc.pose, corrected};
+    corrections[i] = pc;
   });
   std::vector<size_t> by_cost(distinct.size());
   std::iota(by_cost.begin(), by_cost.end(), 0);
@@ -721,23 +721,19 @@ Registration Register(const Skyline& skyline, const HorizonProfile& horizon, con
   // Stage 2: robust least squares for the best few, ranked on all columns.
   const size_t n_refine = std::min(by_cost.size(), static_cast<size_t>(options.refined_candidates));
   std::vector<std::optional<Candidate>> slots(n_refine);
-  const int refine_workers = std::clamp(static_cast<int>(n_refine), 1, options.num_threads);
-  RunWorkers(refine_workers, [&](int t) {
-    std::vector<Column> cols;  // weighted for each candidate's pose
-    for (size_t k = t; k < n_refine; k += refine_workers) {
-      const Candidate& c = distinct[by_cost[k]];
-      cols = quick;
-      scorer.Reweight(c.pose, cols);
-      const Refined r = RefineLeastSquares(scorer, cols, c.pose, tau, 2, false, 1.0);
-      Candidate rc{r.pose, 0.0};
-      const CameraPose cp = rc.pose.ToPose();
-      if (!WithinPrior(options, cp)) continue;
-      const double hfov = RadToDeg(2.0 * std::atan(0.5 * width / rc.pose.f));
-      if (hfov < options.min_hfov_deg * 0.95 || hfov > options.max_hfov_deg * 1.05) continue;
-      rc.cost = scorer.Cost(rc.pose, all) + 0.02 * PriorPenalty(options.prior, cp) * scorer.tau2() / 9.0;
-      rc.inliers = scorer.InlierFraction(rc.pose, all);
-      slots[k] = rc;
-    }
+  ParallelFor(n_refine, options.num_threads, [&](size_t k, int) {
+    const Candidate& c = distinct[by_cost[k]];
+    std::vector<Column> cols = quick;  // weighted for this candidate's pose
+    scorer.Reweight(c.pose, cols);
+    const Refined r = RefineLeastSquares(scorer, cols, c.pose, tau, 2, false, 1.0);
+    Candidate rc{r.pose, 0.0};
+    const CameraPose cp = rc.pose.ToPose();
+    if (!WithinPrior(options, cp)) return;
+    const double hfov = RadToDeg(2.0 * std::atan(0.5 * width / rc.pose.f));
+    if (hfov < options.min_hfov_deg * 0.95 || hfov > options.max_hfov_deg * 1.05) return;
+    rc.cost = scorer.Cost(rc.pose, all) + 0.02 * PriorPenalty(options.prior, cp) * scorer.tau2() / 9.0;
+    rc.inliers = scorer.InlierFraction(rc.pose, all);
+    slots[k] = rc;
   });
   std::vector<Candidate> refined;
   std::vector<PaperCorrection> refined_corrections;
@@ -778,7 +774,7 @@ Registration RefinePose(const Skyline& skyline, const HorizonProfile& horizon, c
   if (horizon.size() < 8) throw InvalidArgument("RefinePose: horizon profile has fewer than 8 bins");
   if (!(focal_px > 0.0)) throw InvalidArgument("RefinePose: focal_px must be > 0");
   const int width = skyline.width;
-  const double px_scale = std::max(1.0, width / 1000.0);
+  const double px_scale = ToleranceScale(width);
   const double tau = options.inlier_px * px_scale;
   Registration out;
   std::vector<Column> all = VisibleColumns(skyline);

@@ -40,7 +40,7 @@ struct RegistrationOptions {
   int candidates = 8;                        // Distinct best hypotheses given the paper's linear corrections, >= 2.
   int refined_candidates = 4;                // ... of which the best this many get the least squares, >= 2.
   double inlier_px = 3.0;                    // A column fits when within this many pixels (per 1000 px of image width).
-  int num_threads = 2;                       // Threads scoring the hypotheses, >= 1 (same result for any count).
+  int num_threads = 2;  // Threads scoring and refining hypotheses, >= 1 (same result for any count).
   // The no-match decision (a wrong pose reported as registered is the worst outcome):
   double min_visible_fraction = 0.15;  // of the image columns with a skyline value
   double min_inlier_fraction = 0.80;   // of the visible columns within inlier_px at the refined pose
@@ -66,6 +66,10 @@ struct Registration {
   int image_extrema = 0, horizon_extrema = 0;
   CameraIntrinsics Intrinsics(int width, int height) const;
 };
+
+// The factor of the pixel tolerances (inlier_px, max_rms_px) for an image
+// `width` pixels wide: per 1000 px, at least 1.
+double ToleranceScale(int width);
 
 // Registers a skyline (skyline module) against a horizon profile computed at
 // the camera's position. Extrema of both (match/extrema.h); hypotheses from

@@ -533,8 +533,8 @@ Skyline ExtractSkyline(const cv::Mat& image, const SkylineOptions& options) {
       cv::resize(source, ws.small, work, 0, 0, cv::INTER_AREA);
       small = ws.small;
     }
-    sx = static_cast<double>(small.cols) / (source.cols * (k >= 2 ? k : 1));
-    sy = static_cast<double>(small.rows) / (source.rows * (k >= 2 ? k : 1));
+    sx = static_cast<double>(small.cols) / (source.cols * k);  // source is the image reduced k times (k >= 1)
+    sy = static_cast<double>(small.rows) / (source.rows * k);
   } else {
     small = bgr;
   }

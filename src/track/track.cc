@@ -294,7 +294,7 @@ std::optional<Registration> RecheckWithGuidedSkyline(const cv::Mat& image, const
   // registration); the search on the re-read skyline checks it again.
   constexpr double kMinFirstAmbiguity = 1.5;
   const int w = skyline.width, h = skyline.height;
-  const double px_scale = std::max(1.0, w / 1000.0), tau = options.inlier_px * px_scale;
+  const double px_scale = ToleranceScale(w), tau = options.inlier_px * px_scale;
   if (first.registered || !(first.focal_px > 0.0) || first.inlier_fraction < kMinFirstInliers ||
       !(first.rms_px <= options.max_rms_px * px_scale) || first.ambiguity_ratio < kMinFirstAmbiguity)
     return std::nullopt;
