@@ -8,6 +8,7 @@
 #include <opencv2/imgproc.hpp>
 #include <sstream>
 
+#include "skyline/lab.h"
 #include "util/angles.h"
 #include "util/errors.h"
 
@@ -27,32 +28,12 @@ constexpr int kStepColumns = 2;           // refinement: steps read from the col
 constexpr double kFogSpreadRows = 2.4;  // median contrast / largest one-row step above which a faint boundary is a fade
 constexpr float kTreeGreen = 7.0f;      // -a* above which a dark boundary is a tree (dark shaded terrain is greyer)
 
-inline int HistIndex(const cv::Vec3f& lab) {
-  const int l = std::clamp(static_cast<int>(lab[0] * (kHistBins / 100.0f)), 0, kHistBins - 1);
-  const int a = std::clamp(static_cast<int>((lab[1] + 64.0f) * (kHistBins / 128.0f)), 0, kHistBins - 1);
-  const int b = std::clamp(static_cast<int>((lab[2] + 64.0f) * (kHistBins / 128.0f)), 0, kHistBins - 1);
-  return (l * kHistBins + a) * kHistBins + b;
+inline int HistIndex(float l, float a, float b) {
+  const int li = std::clamp(static_cast<int>(l * (kHistBins / 100.0f)), 0, kHistBins - 1);
+  const int ai = std::clamp(static_cast<int>((a + 64.0f) * (kHistBins / 128.0f)), 0, kHistBins - 1);
+  const int bi = std::clamp(static_cast<int>((b + 64.0f) * (kHistBins / 128.0f)), 0, kHistBins - 1);
+  return (li * kHistBins + ai) * kHistBins + bi;
 }
-
-// The logistic function, from a table (linear interpolation, error < 1e-5;
-// exp() per pixel was a third of the extraction time).
-class SigmoidTable {
- public:
-  SigmoidTable() {
-    for (int i = 0; i <= kN; ++i) t_[i] = static_cast<float>(1.0 / (1.0 + std::exp(-(i * kStep - kRange))));
-    t_[kN + 1] = t_[kN];
-  }
-  float operator()(float x) const {
-    const float u = (std::clamp(x, -kRange, kRange) + kRange) * (1.0f / kStep);
-    const int i = static_cast<int>(u);
-    return t_[i] + (u - i) * (t_[i + 1] - t_[i]);
-  }
-
- private:
-  static constexpr float kRange = 16.0f, kStep = 1.0f / 64;
-  static constexpr int kN = static_cast<int>(2 * kRange / kStep);
-  std::array<float, kN + 2> t_{};
-};
 
 // The q-quantile (0..1) of a non-empty sample (reorders it).
 double Quantile(std::vector<double>& v, double q) {
@@ -61,165 +42,147 @@ double Quantile(std::vector<double>& v, double q) {
   return *it;
 }
 
-inline float Sigmoid(float x) {
-  static const SigmoidTable table;
-  return table(x);
+// The mean of each 2 x 2 block of a float plane (a half-size plane; an odd
+// last row or column averages what it has). cv::resize spends several times
+// as long on this.
+HR_VECTOR_CLONES void HalvePlane(const cv::Mat& m, cv::Mat& out) {
+  const int rows = (m.rows + 1) / 2, cols = (m.cols + 1) / 2, pairs = m.cols / 2;
+  out.create(rows, cols, CV_32F);
+  for (int r = 0; r < rows; ++r) {
+    const float* a = m.ptr<float>(2 * r);
+    const float* b = m.ptr<float>(std::min(2 * r + 1, m.rows - 1));
+    float* o = out.ptr<float>(r);
+    for (int c = 0; c < pairs; ++c) o[c] = 0.25f * (a[2 * c] + a[2 * c + 1] + b[2 * c] + b[2 * c + 1]);
+    if (cols > pairs) o[pairs] = 0.25f * (a[m.cols - 1] + a[m.cols - 1] + b[m.cols - 1] + b[m.cols - 1]);
+  }
 }
 
-// 8-bit sRGB (BGR order) to CIELAB (D65; L 0..100), as OpenCV defines it.
-// Written out because OpenCV's cvtColor spends ~120 ms building its Lab
-// tables on first use, which a one-shot command pays every time.
-class LabConverter {
- public:
-  LabConverter() {
-    for (int i = 0; i < 256; ++i) {
-      const double v = i / 255.0;
-      linear_[i] = static_cast<float>(v <= 0.04045 ? v / 12.92 : std::pow((v + 0.055) / 1.055, 2.4));
-    }
-    for (int i = 0; i <= kLut + 1; ++i) {  // f(t) = cbrt(t), or its linear toe, on [0, 1.1]
-      const double t = 1.1 * i / kLut;
-      f_[i] = static_cast<float>(t > 0.008856 ? std::cbrt(t) : 7.787 * t + 16.0 / 116.0);
-    }
-  }
-  cv::Vec3f operator()(const cv::Vec3b& bgr) const {
-    const float b = linear_[bgr[0]], g = linear_[bgr[1]], r = linear_[bgr[2]];
-    const float fx = F((0.412453f * r + 0.357580f * g + 0.180423f * b) / 0.950456f);
-    const float fy = F(0.212671f * r + 0.715160f * g + 0.072169f * b);
-    const float fz = F((0.019334f * r + 0.119193f * g + 0.950227f * b) / 1.088754f);
-    return {116.0f * fy - 16.0f, 500.0f * (fx - fy), 200.0f * (fy - fz)};
-  }
-  // CIELAB of a whole 8-bit BGR image.
-  void Convert(const cv::Mat& bgr, cv::Mat& lab) const {
-    lab.create(bgr.rows, bgr.cols, CV_32FC3);
-    for (int r = 0; r < bgr.rows; ++r) {
-      const cv::Vec3b* in = bgr.ptr<cv::Vec3b>(r);
-      cv::Vec3f* out = lab.ptr<cv::Vec3f>(r);
-      for (int c = 0; c < bgr.cols; ++c) out[c] = (*this)(in[c]);
-    }
-  }
-
- private:
-  static constexpr int kLut = 4096;
-  float F(float t) const {
-    const float x = std::clamp(t, 0.0f, 1.1f) * (kLut / 1.1f);
-    const int i = static_cast<int>(x);
-    return f_[i] + (x - i) * (f_[i + 1] - f_[i]);
-  }
-  std::array<float, 256> linear_{};
-  std::array<float, kLut + 2> f_{};
-};
-
-// The mean of each 2 x 2 block (a half-size image; an odd last row or
-// column averages what it has). cv::resize spends ~0.6 ms per call on this
-// for three-channel float images.
-void Halve(const cv::Mat& m, cv::Mat& out) {
-  const int rows = (m.rows + 1) / 2, cols = (m.cols + 1) / 2;
-  out.create(rows, cols, CV_32FC3);
-  for (int r = 0; r < rows; ++r) {
-    const cv::Vec3f* a = m.ptr<cv::Vec3f>(2 * r);
-    const cv::Vec3f* b = m.ptr<cv::Vec3f>(std::min(2 * r + 1, m.rows - 1));
-    cv::Vec3f* o = out.ptr<cv::Vec3f>(r);
-    for (int c = 0; c < cols; ++c) {
-      const int c1 = std::min(2 * c + 1, m.cols - 1);
-      o[c] = 0.25f * (a[2 * c] + a[c1] + b[2 * c] + b[c1]);
-    }
-  }
+void Halve(const LabPlanes& lab, LabPlanes& out) {
+  HalvePlane(lab.l, out.l);
+  HalvePlane(lab.a, out.a);
+  HalvePlane(lab.b, out.b);
 }
 
 // Pass 1: sky likeness relative to the image's top band (assumed sky).
-// lab_t is transposed (one row per image column).
-void SkyScoreFromTopBand(const cv::Mat& lab_t, cv::Mat& s) {
-  const int w = lab_t.rows, h = lab_t.cols;
+// Planes transposed (one row per image column).
+HR_VECTOR_CLONES void SkyScoreFromTopBand(const LabPlanes& lab, cv::Mat& s) {
+  const int w = lab.Rows(), h = lab.Cols();
   const int band = std::max(2, h / 30);
   std::vector<float> ls;
-  for (int c = 0; c < w; ++c)
-    for (int r = 0; r < band; ++r) ls.push_back(lab_t.at<cv::Vec3f>(c, r)[0]);
-  auto median = [](std::vector<float>& v) {
-    std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
-    return v[v.size() / 2];
-  };
-  const float lm = median(ls);
+  ls.reserve(static_cast<size_t>(w) * band);
+  for (int c = 0; c < w; ++c) ls.insert(ls.end(), lab.l.ptr<float>(c), lab.l.ptr<float>(c) + band);
+  std::nth_element(ls.begin(), ls.begin() + ls.size() / 2, ls.end());
+  const float lm = ls[ls.size() / 2];
+  constexpr float kDarkDrop = 6.0f, kDarkScale = 2.5f;  // darker than the reference by this much: terrain
   s.create(w, h, CV_32F);
+  std::vector<float> scratch(5 * static_cast<size_t>(h));
+  float* not_warm = scratch.data();
+  float* deep_blue = not_warm + h;
+  float* exp_light = deep_blue + h;
+  float* exp_ref = exp_light + h;
+  float* ref_at = exp_ref + h;
   for (int c = 0; c < w; ++c) {
-    const cv::Vec3f* row = lab_t.ptr<cv::Vec3f>(c);
+    const float* l = lab.l.ptr<float>(c);
+    const float* a = lab.a.ptr<float>(c);
+    const float* b = lab.b.ptr<float>(c);
     float* out = s.ptr<float>(c);
+    // Sky: not darker than the sky above it, blue or neutral in hue (clouds,
+    // haze); terrain is darker or green, yellow, brown or red. Saturated
+    // blue is sky however dark (deep sky, sky below distant terrain); haze on
+    // far ridges is paler than that.
+    for (int r = 0; r < h; ++r) {
+      const float warm = Logistic((b[r] - 6.0f) / 2.0f) + Logistic((std::abs(a[r]) - 10.0f) / 2.0f);
+      not_warm[r] = warm < 1.0f ? 1.0f - warm : 0.0f;
+      deep_blue[r] = Logistic((kDeepBlueB - b[r]) / 3.0f);
+    }
+    for (int r = 0; r < h; ++r) {  // a loop apart: GCC vectorises at most 10 alias tests
+      exp_light[r] = ExpApprox(-l[r] / kDarkScale);
+      exp_ref[r] = ExpApprox((l[r] - kDarkDrop) / kDarkScale);
+    }
     // Reference lightness: the lightest blue sky seen so far down this
     // column (skies lighten towards the horizon; white clouds are left out).
-    float ref = lm;
+    // The only sequential part, so it decides "sky score > 0.5" without the
+    // logistic: (1 - dark) * not_warm > 0.5, with dark = logistic(x) and
+    // x = (ref - drop - l) / scale, holds when e^x < 2 not_warm - 1.
+    float ref = lm, exp_ref_now = ExpApprox((lm - kDarkDrop) / kDarkScale);
     for (int r = 0; r < h; ++r) {
-      const cv::Vec3f v = row[r];
-      // Sky: not darker than the sky above it, blue or neutral in hue
-      // (clouds, haze); terrain is darker or green, yellow, brown or red.
-      const float dark = Sigmoid(((ref - 6.0f) - v[0]) / 2.5f);
-      const float warm = std::min(1.0f, Sigmoid((v[2] - 6.0f) / 2.0f) + Sigmoid((std::abs(v[1]) - 10.0f) / 2.0f));
-      // Saturated blue is sky however dark (deep sky, sky below distant
-      // terrain); haze on far ridges is paler than that.
-      const float deep_blue = Sigmoid((kDeepBlueB - v[2]) / 3.0f);
-      out[r] = std::max((1.0f - dark), deep_blue) * (1.0f - warm);
-      if (v[2] < -8.0f && out[r] > 0.5f) ref = std::max(ref, v[0]);
+      ref_at[r] = ref;
+      if (b[r] < -8.0f && l[r] > ref &&
+          (deep_blue[r] * not_warm[r] > 0.5f || exp_ref_now * exp_light[r] < 2.0f * not_warm[r] - 1.0f))
+        ref = l[r], exp_ref_now = exp_ref[r];
+    }
+    for (int r = 0; r < h; ++r) {
+      const float dark = Logistic(((ref_at[r] - kDarkDrop) - l[r]) / kDarkScale);
+      out[r] = std::max(1.0f - dark, deep_blue[r]) * not_warm[r];
     }
   }
 }
 
 // Pass 2: sky probability from colour histograms of the pixels above and
 // below a first boundary (class-balanced likelihood ratio).
-void SkyScoreFromHistograms(const cv::Mat& lab_t, const std::vector<int>& boundary, cv::Mat& s) {
-  const int w = lab_t.rows, h = lab_t.cols;
-  std::vector<float> sky(kHistBins * kHistBins * kHistBins, 1.0f), ground(sky.size(), 1.0f);
-  double ns = sky.size(), ng = ground.size();
-  s.create(w, h, CV_32F);
+HR_VECTOR_CLONES void SkyScoreFromHistograms(const LabPlanes& lab, const std::vector<int>& boundary, cv::Mat& bins,
+                                             cv::Mat& s) {
+  const int w = lab.Rows(), h = lab.Cols();
+  constexpr int kCells = kHistBins * kHistBins * kHistBins;
+  std::vector<int> sky(kCells, 1), ground(kCells, 1);  // counts, from 1 each
+  int ns = kCells, ng = kCells;
+  bins.create(w, h, CV_32S);
   for (int c = 0; c < w; ++c) {
-    const cv::Vec3f* row = lab_t.ptr<cv::Vec3f>(c);
-    float* bin = s.ptr<float>(c);  // each pixel's bin for now (exact in a float)
-    for (int r = 0; r < h; ++r) {
-      const int i = HistIndex(row[r]);
-      bin[r] = static_cast<float>(i);
-      if (r < boundary[c] - 2) {
-        sky[i] += 1, ns += 1;
-      } else if (r > boundary[c] + 2) {
-        ground[i] += 1, ng += 1;
-      }
-    }
+    const float* l = lab.l.ptr<float>(c);
+    const float* a = lab.a.ptr<float>(c);
+    const float* b = lab.b.ptr<float>(c);
+    int* bin = bins.ptr<int>(c);
+    for (int r = 0; r < h; ++r) bin[r] = HistIndex(l[r], a[r], b[r]);
+    const int sky_end = std::clamp(boundary[c] - 2, 0, h), ground_start = std::clamp(boundary[c] + 3, 0, h);
+    for (int r = 0; r < sky_end; ++r) ++sky[bin[r]];
+    for (int r = ground_start; r < h; ++r) ++ground[bin[r]];
+    ns += sky_end, ng += h - ground_start;
   }
-  std::vector<float> p(sky.size());
-  for (size_t i = 0; i < p.size(); ++i) {
-    const double ps = sky[i] / ns, pg = ground[i] / ng;
+  std::vector<float> p(kCells);
+  for (int i = 0; i < kCells; ++i) {
+    const double ps = static_cast<double>(sky[i]) / ns, pg = static_cast<double>(ground[i]) / ng;
     p[i] = static_cast<float>(std::clamp(ps / (ps + pg), 0.02, 0.98));
   }
+  s.create(w, h, CV_32F);
   for (int c = 0; c < w; ++c) {
+    const int* bin = bins.ptr<int>(c);
     float* out = s.ptr<float>(c);
-    for (int r = 0; r < h; ++r) out[r] = p[static_cast<int>(out[r])];
+    for (int r = 0; r < h; ++r) out[r] = p[bin[r]];
   }
 }
 
+// Colour step between rows y-1 and y from the mean colours of rows i0, i1
+// above and i2, i3 below (see BoundarySteps).
+inline float StepAt(const float* l, const float* a, const float* b, int i0, int i1, int i2, int i3) {
+  const float dl = 0.5f * (l[i2] + l[i3] - l[i0] - l[i1]), da = 0.5f * (a[i2] + a[i3] - a[i0] - a[i1]);
+  const float below_b = 0.5f * (b[i2] + b[i3]), db = below_b - 0.5f * (b[i0] + b[i1]);
+  // Any clear edge may be the skyline, not only the strongest: the reward
+  // saturates (a faint far ridge above a contrasty near one).
+  const float mag = std::min(std::sqrt(dl * dl + da * da + db * db), kEdgeCap);
+  // A step down into saturated blue is within the sky (a cloud's base, the
+  // renderer's or a real sky's deep blue near the horizon): terrain below
+  // the skyline is never that blue, even far and hazy.
+  const float into_deep_blue = Logistic((kDeepBlueB - below_b) / 3.0f);
+  return (dl > 2.0f ? 0.5f * mag : mag) * (1.0f - into_deep_blue);
+}
+
 // Colour step between rows y-1 and y: delta E between the means of rows
-// (y, y+1) and (y-2, y-1), for y in [0, h]. Steps
-// where the upper side is darker count half (sky is usually the brighter
-// side). One row per image column.
-void BoundarySteps(const cv::Mat& lab_t, cv::Mat& e) {
-  const int w = lab_t.rows, h = lab_t.cols;
+// (y, y+1) and (y-2, y-1), for y in [0, h]. Steps where the upper side is
+// darker count half (sky is usually the brighter side). One row per image
+// column.
+HR_VECTOR_CLONES void BoundarySteps(const LabPlanes& lab, cv::Mat& e) {
+  const int w = lab.Rows(), h = lab.Cols();
   e.create(w, h + 1, CV_32F);
   for (int c = 0; c < w; ++c) {
-    const cv::Vec3f* row = lab_t.ptr<cv::Vec3f>(c);
+    const float* l = lab.l.ptr<float>(c);
+    const float* a = lab.a.ptr<float>(c);
+    const float* b = lab.b.ptr<float>(c);
     float* out = e.ptr<float>(c);
     out[0] = out[h] = 0.0f;
-    for (int y = 1; y < h; ++y) {
-      const float* p0 = &row[std::max(y - 2, 0)][0];
-      const float* p1 = &row[y - 1][0];
-      const float* p2 = &row[y][0];
-      const float* p3 = &row[std::min(y + 1, h - 1)][0];
-      const float dl = 0.5f * (p2[0] + p3[0] - p0[0] - p1[0]), da = 0.5f * (p2[1] + p3[1] - p0[1] - p1[1]),
-                  below_b = 0.5f * (p2[2] + p3[2]), db = below_b - 0.5f * (p0[2] + p1[2]);
-      // Any clear edge may be the skyline, not only the strongest: the
-      // reward saturates (a faint far ridge above a contrasty near one).
-      const float mag = std::min(std::sqrt(dl * dl + da * da + db * db), kEdgeCap);
-      // A step down into saturated blue is within the sky (a cloud's base,
-      // the renderer's or a real sky's deep blue near the horizon): terrain
-      // below the skyline is never that blue, even far and hazy. (Above
-      // b* = kDeepBlueB + 24 the logistic is < 4e-4: skipped.)
-      const float into_deep_blue = below_b > kDeepBlueB + 24.0f ? 0.0f : Sigmoid((kDeepBlueB - below_b) / 3.0f);
-      out[y] = (dl > 2.0f ? 0.5f * mag : mag) * (1.0f - into_deep_blue);
-    }
+    auto clamped = [&](int y) { out[y] = StepAt(l, a, b, std::max(y - 2, 0), y - 1, y, std::min(y + 1, h - 1)); };
+    if (h > 1) clamped(1);
+    for (int y = 2; y < h - 1; ++y) out[y] = StepAt(l, a, b, y - 2, y - 1, y, y + 1);
+    if (h > 2) clamped(h - 1);
   }
 }
 
@@ -234,7 +197,8 @@ struct EdgePenalty {
   cv::Mat blue;         // CV_8U, 1 where the pixel is blue sky
 };
 
-void EdgeAbovePenalty(const cv::Mat& steps_t, const cv::Mat& sky_t, const cv::Mat& lab_t, EdgePenalty& pen) {
+HR_VECTOR_CLONES void EdgeAbovePenalty(const cv::Mat& steps_t, const cv::Mat& sky_t, const LabPlanes& lab,
+                                       EdgePenalty& pen) {
   const int w = sky_t.rows, h = sky_t.cols;
   pen.base.create(w, h, CV_32F);
   pen.extra.create(w, h, CV_32F);
@@ -243,25 +207,31 @@ void EdgeAbovePenalty(const cv::Mat& steps_t, const cv::Mat& sky_t, const cv::Ma
   for (int c = 0; c < w; ++c) {
     const float* e = steps_t.ptr<float>(c);
     const float* s = sky_t.ptr<float>(c);
-    const cv::Vec3f* lab = lab_t.ptr<cv::Vec3f>(c);
+    const float* l = lab.l.ptr<float>(c);
+    const float* b = lab.b.ptr<float>(c);
     float* base = pen.base.ptr<float>(c);
     float* extra = pen.extra.ptr<float>(c);
     uint8_t* is_blue = pen.blue.ptr<uint8_t>(c);
+    float* bl = blue.data();
     for (int k = 0; k < h; ++k) {
-      blue[k] = s[k] > 0.05f && lab[k][2] < 0.0f ? s[k] * Sigmoid((-lab[k][2] - 8.0f) / 2.0f) : 0.0f;
-      is_blue[k] = blue[k] > 0.5f;
+      const float likeness = s[k] * Logistic((-b[k] - 8.0f) / 2.0f);
+      bl[k] = s[k] > 0.05f && b[k] < 0.0f ? likeness : 0.0f;
     }
-    for (int y = 0; y < h; ++y) {
-      if (e[y] <= kEdgeNoise) {
-        base[y] = extra[y] = 0.0f;
-        continue;
-      }
-      const float blue_sky = std::max({blue[y], blue[std::min(y + 1, h - 1)], blue[std::min(y + 2, h - 1)]});
-      const cv::Vec3f& after = lab[std::min(y + 2, h - 1)];
-      const float white = Sigmoid((after[0] - 80.0f) / 3.0f) * Sigmoid((6.0f - std::abs(after[2])) / 2.0f);
-      base[y] = (e[y] - kEdgeNoise) * (1.0f - blue_sky);
-      extra[y] = base[y] * kSnowEdgeBoost * white;
-    }
+    for (int k = 0; k < h; ++k) is_blue[k] = bl[k] > 0.5f ? 1 : 0;
+    // Row y, with y1, y2 the next two rows (clamped).
+    auto at = [&](int y, int y1, int y2) {
+      const float blue_sky = std::max(bl[y], std::max(bl[y1], bl[y2]));
+      base[y] = e[y] <= kEdgeNoise ? 0.0f : (e[y] - kEdgeNoise) * (1.0f - blue_sky);
+    };
+    for (int y = 0; y < h - 2; ++y) at(y, y + 1, y + 2);
+    for (int y = std::max(0, h - 2); y < h; ++y) at(y, std::min(y + 1, h - 1), h - 1);
+    // The snow boost, from the colour 2 rows below.
+    auto snow = [&](int y, int y2) {
+      extra[y] =
+          base[y] * kSnowEdgeBoost * Logistic((l[y2] - 80.0f) / 3.0f) * Logistic((6.0f - std::abs(b[y2])) / 2.0f);
+    };
+    for (int y = 0; y < h - 2; ++y) snow(y, y + 2);
+    for (int y = std::max(0, h - 2); y < h; ++y) snow(y, h - 1);
   }
 }
 
@@ -272,64 +242,76 @@ std::vector<int> SolveBoundary(const cv::Mat& sky_t, const cv::Mat& steps_t, con
                                double smoothness, double edge_weight, double slope_px_per_col,
                                std::vector<float>& acc) {
   const int w = sky_t.rows, h = sky_t.cols, n = h + 1;
-  std::vector<float> prev(n), cur(n), data(n), tmp(n), pen(n + 1), pen_extra(n + 1);
+  std::vector<float> data(n), forward(n), ramp(n), pen(n + 1), pen_extra(n + 1), zeros(n, 0.0f), column_min(w);
   const float beta = static_cast<float>(smoothness), lambda = static_cast<float>(edge_weight);
-  auto data_cost = [&](int c) {
+  for (int y = 0; y < n; ++y) ramp[y] = beta * static_cast<float>(y);
+  std::vector<int> shift(w, 0);  // rows the expected slope moves the boundary from column c - 1 to c
+  for (int c = 1; c < w; ++c)
+    shift[c] = static_cast<int>(std::lround(c * slope_px_per_col) - std::lround((c - 1) * slope_px_per_col));
+  acc.resize(static_cast<size_t>(w) * n);
+  for (int c = 0; c < w; ++c) {
+    // The previous column's costs (none before the first), shifted by the
+    // slope and spread by an L1 distance transform, min over k of
+    // prev[k] + beta |y - k|: running minima of prev[k] - beta k downwards
+    // and of prev[k] + beta k upwards (the argmins are recovered when tracing
+    // back). Plus the column's own cost: misclassified pixels (non-sky above
+    // the boundary, sky below it; the column's sky total, the same for every
+    // y, is left out), minus the colour step at the boundary, plus the sharp
+    // steps left above it (the paper scans from the top for the first edge):
+    // each costs its excess over the noise level unless it leads into sky
+    // (EdgeAbovePenalty); steps within 2 rows above the boundary are its own
+    // (the 4-tap step spreads an edge over 3 rows).
+    const float* prev = c > 0 ? acc.data() + static_cast<size_t>(c - 1) * n : zeros.data();
+    auto prev_at = [&, sh = shift[c]](int y) { return prev[std::clamp(y - sh, 0, h)]; };
     const float* s = sky_t.ptr<float>(c);
     const float* e = steps_t.ptr<float>(c);
-    float below = 0;
-    for (int r = 0; r < h; ++r) below += s[r];
-    // Sharp colour steps above the boundary are terrain edges left in the
-    // sky (the paper scans from the top for the first edge): each costs its
-    // excess over the noise level, unless it leads into sky-coloured pixels
-    // (within 2 rows). Steps within 2 rows above the boundary are its own
-    // (the 4-tap step spreads an edge over 3 rows).
     const float* p = penalty.base.ptr<float>(c);
     const float* px = penalty.extra.ptr<float>(c);
     const uint8_t* blue = penalty.blue.ptr<uint8_t>(c);
+    float sky_above = 0, run = INFINITY;
     pen[0] = pen_extra[0] = 0;
-    for (int y = 0; y < h; ++y) pen[y + 1] = pen[y] + p[y], pen_extra[y + 1] = pen_extra[y] + px[y];
-    float above = 0;
     int after_blue = 0;  // first row below the last blue-sky row above the boundary's margin
     for (int y = 0; y <= h; ++y) {
       const int top = std::max(0, y - 2);  // rows [0, top) lie above the boundary's own step
       if (top > 0 && blue[top - 1]) after_blue = top;
-      const float snow = pen_extra[top] - pen_extra[std::min(after_blue, top)];
-      data[y] = kColourWeight * (above + below) + kEdgeAboveWeight * (pen[top] + snow) - lambda * e[y];
-      if (y < h) above += 1.0f - s[y], below -= s[y];
+      const float snow = pen_extra[top] - pen_extra[after_blue];
+      const float misclassified = static_cast<float>(y) - 2.0f * sky_above;
+      data[y] = kColourWeight * misclassified + kEdgeAboveWeight * (pen[top] + snow) - lambda * e[y];
+      run = std::min(run, prev_at(y) - ramp[y]);
+      forward[y] = run + ramp[y];
+      if (y < h) sky_above += s[y], pen[y + 1] = pen[y] + p[y], pen_extra[y + 1] = pen_extra[y] + px[y];
     }
-  };
-  data_cost(0);
-  prev = data;
-  acc.resize(static_cast<size_t>(w) * n);
-  std::copy(prev.begin(), prev.end(), acc.begin());
-  std::vector<int> shift(w, 0);  // rows the expected slope moves the boundary from column c - 1 to c
-  for (int c = 1; c < w; ++c)
-    shift[c] = static_cast<int>(std::lround(c * slope_px_per_col) - std::lround((c - 1) * slope_px_per_col));
-  for (int c = 1; c < w; ++c) {
-    // Shifted previous column, then an L1 distance transform (the argmins
-    // are recovered when tracing back).
-    for (int y = 0; y < n; ++y) tmp[y] = prev[std::clamp(y - shift[c], 0, h)];
-    for (int y = 1; y < n; ++y) tmp[y] = std::min(tmp[y], tmp[y - 1] + beta);
-    for (int y = n - 2; y >= 0; --y) tmp[y] = std::min(tmp[y], tmp[y + 1] + beta);
-    data_cost(c);
-    for (int y = 0; y < n; ++y) cur[y] = tmp[y] + data[y];
-    std::swap(prev, cur);
-    std::copy(prev.begin(), prev.end(), acc.begin() + static_cast<size_t>(c) * n);
+    float* cur = acc.data() + static_cast<size_t>(c) * n;
+    float lowest = INFINITY;
+    run = INFINITY;
+    for (int y = h; y >= 0; --y) {
+      run = std::min(run, prev_at(y) + ramp[y]);
+      cur[y] = std::min(forward[y], run - ramp[y]) + data[y];
+      lowest = std::min(lowest, cur[y]);
+    }
+    column_min[c] = lowest;
   }
   std::vector<int> out(w);
-  out[w - 1] = static_cast<int>(std::min_element(prev.begin(), prev.end()) - prev.begin());
+  const float* last = acc.data() + static_cast<size_t>(w - 1) * n;
+  out[w - 1] = static_cast<int>(std::min_element(last, last + n) - last);
   for (int c = w - 1; c > 0; --c) {
-    // The previous column's row that reached out[c] most cheaply.
+    // The previous column's row that reached out[c] most cheaply (the first
+    // of equals), searched outwards from out[c] until the jump alone costs
+    // more than the best found.
     const float* a = acc.data() + static_cast<size_t>(c - 1) * n;
+    const int o = out[c];
     float best = INFINITY;
-    int best_src = 0;
-    for (int y = 0; y < n; ++y) {
-      const int src = std::clamp(y - shift[c], 0, h);
-      const float v = a[src] + beta * static_cast<float>(std::abs(out[c] - y));
-      if (v < best) best = v, best_src = src;
+    int best_y = n;
+    auto consider = [&](int y) {
+      const float v = a[std::clamp(y - shift[c], 0, h)] + beta * static_cast<float>(std::abs(o - y));
+      if (v < best || (v == best && y < best_y)) best = v, best_y = y;
+    };
+    consider(o);
+    for (int d = 1; (o - d >= 0 || o + d < n) && column_min[c - 1] + beta * static_cast<float>(d) <= best; ++d) {
+      if (o - d >= 0) consider(o - d);
+      if (o + d < n) consider(o + d);
     }
-    out[c - 1] = best_src;
+    out[c - 1] = std::clamp(best_y - shift[c], 0, h);
   }
   return out;
 }
@@ -342,45 +324,68 @@ struct ColumnFit {
   double spread = 0;        // contrast / the largest one-row step: about 1-2 rows for an edge, more for a fade
 };
 
+// A column's pixels as CIELAB planes (refinement scratch).
+struct ColumnLab {
+  std::vector<uint8_t> bgr;
+  std::vector<float> l, a, b;
+  void Convert(int n) {
+    l.resize(n), a.resize(n), b.resize(n);
+    LabConverter::Instance().Convert(bgr.data(), 3, n, l.data(), a.data(), b.data());
+  }
+  float DistanceSq(int i, int j) const {
+    const float dl = l[i] - l[j], da = a[i] - a[j], db = b[i] - b[j];
+    return dl * dl + da * da + db * db;
+  }
+};
+
+// Scratch of RefineColumn, kept across columns.
+struct RefineScratch {
+  ColumnLab column, wide;
+  std::vector<float> steps;
+  std::vector<int> rows;
+};
+
 // Sub-pixel boundary near row r0 of full-size column x: where the colour
 // crosses half way from the local sky colour to the local ground colour.
-ColumnFit RefineColumn(const cv::Mat& bgr, const LabConverter& to_lab, int x, double y0, int window) {
+ColumnFit RefineColumn(const cv::Mat& bgr, int x, double y0, int window, RefineScratch& scratch) {
+  ColumnLab &lab = scratch.column, &wide = scratch.wide;
   const int h = bgr.rows, centre = static_cast<int>(std::lround(y0));
   // The column's colours over every row used below, converted once, and
   // those of the column averaged with kStepColumns neighbours on each side:
   // the steps that choose the boundary row are read from the average (pixel
   // noise in the sky would otherwise pass for the topmost clear step), the
-  // crossing and the colours from the column itself.
-  const int first = centre - window - 5, last = centre + window + 4;
-  std::vector<cv::Vec3f> lab(last - first + 1), wide(last - first + 1);
+  // crossing and the colours from the column itself. Index i is row first + i.
+  const int first = centre - window - 5, last = centre + window + 4, count = last - first + 1;
   const int c0 = std::max(0, x - kStepColumns), c1 = std::min(bgr.cols - 1, x + kStepColumns), n = c1 - c0 + 1;
-  for (int r = first; r <= last; ++r) {
-    const cv::Vec3b* row = bgr.ptr<cv::Vec3b>(std::clamp(r, 0, h - 1));
-    lab[r - first] = to_lab(row[x]);
-    cv::Vec3i sum(0, 0, 0);
-    for (int c = c0; c <= c1; ++c) sum += cv::Vec3i(row[c]);
-    cv::Vec3b mean;
-    for (int k = 0; k < 3; ++k) mean[k] = static_cast<uint8_t>((sum[k] + n / 2) / n);
-    wide[r - first] = to_lab(mean);
+  lab.bgr.resize(3 * count), wide.bgr.resize(3 * count);
+  for (int i = 0; i < count; ++i) {
+    const uint8_t* row = bgr.ptr<uint8_t>(std::clamp(first + i, 0, h - 1));
+    int sum[3] = {0, 0, 0};
+    for (int c = c0; c <= c1; ++c)
+      for (int k = 0; k < 3; ++k) sum[k] += row[3 * c + k];
+    for (int k = 0; k < 3; ++k) {
+      lab.bgr[3 * i + k] = row[3 * x + k];
+      wide.bgr[3 * i + k] = static_cast<uint8_t>((sum[k] + n / 2) / n);
+    }
   }
-  auto at = [&](int r) { return lab[r - first]; };
-  auto at_wide = [&](int r) { return wide[r - first]; };
+  lab.Convert(count), wide.Convert(count);
   // The topmost clear step in the window (the paper scans each column from
   // the top for the first edge): a faint far ridge above a contrasty near
   // one is the skyline.
-  std::vector<float> steps;
-  std::vector<int> rows;
-  int best = static_cast<int>(std::lround(y0));
+  std::vector<float>& steps = scratch.steps;
+  std::vector<int>& rows = scratch.rows;
+  steps.clear(), rows.clear();
+  int best = centre;
   float best_step = -1;
-  for (int r = static_cast<int>(std::lround(y0)) - window; r <= static_cast<int>(std::lround(y0)) + window; ++r) {
+  for (int r = centre - window; r <= centre + window; ++r) {
     if (r < 1 || r >= h) continue;
-    const cv::Vec3f d = at_wide(r) - at_wide(r - 1);
-    steps.push_back(std::sqrt(d.dot(d)));
+    steps.push_back(std::sqrt(wide.DistanceSq(r - first, r - 1 - first)));
     rows.push_back(r);
     if (steps.back() > best_step) best_step = steps.back(), best = r;  // the strongest, if no step is clear
   }
-  for (size_t i = 0; i < steps.size(); ++i) {
-    const bool local_max = (i == 0 || steps[i] >= steps[i - 1]) && (i + 1 == steps.size() || steps[i] >= steps[i + 1]);
+  const int m = static_cast<int>(steps.size());
+  for (int i = 0; i < m; ++i) {
+    const bool local_max = (i == 0 || steps[i] >= steps[i - 1]) && (i + 1 == m || steps[i] >= steps[i + 1]);
     if (local_max && steps[i] >= kTopStepShare * best_step && steps[i] >= kTopStepMin) {
       best = rows[i];
       break;
@@ -388,17 +393,24 @@ ColumnFit RefineColumn(const cv::Mat& bgr, const LabConverter& to_lab, int x, do
   }
   ColumnFit fit;
   if (best_step < 0) return fit;
-  cv::Vec3f sky(0, 0, 0), ground(0, 0, 0);
-  for (int k = 2; k <= 4; ++k) sky += at(best - 1 - k), ground += at(best + k);
-  sky *= 1.0f / 3, ground *= 1.0f / 3;
-  const cv::Vec3f d = sky - ground;
-  const float dd = d.dot(d);
+  float sky[3] = {0, 0, 0}, ground[3] = {0, 0, 0};
+  for (int k = 2; k <= 4; ++k) {
+    const int above = best - 1 - k - first, below = best + k - first;
+    sky[0] += lab.l[above], sky[1] += lab.a[above], sky[2] += lab.b[above];
+    ground[0] += lab.l[below], ground[1] += lab.a[below], ground[2] += lab.b[below];
+  }
+  for (int k = 0; k < 3; ++k) sky[k] *= 1.0f / 3, ground[k] *= 1.0f / 3;
+  const float d[3] = {sky[0] - ground[0], sky[1] - ground[1], sky[2] - ground[2]};
+  const float dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
   fit.contrast = std::sqrt(dd);
   fit.spread = best_step > 0 ? fit.contrast / best_step : 0;
   fit.ground_l = ground[0];
   fit.ground_green = -ground[1];
   if (dd < 1e-6f) return fit;
-  auto t = [&](int r) { return (at(r) - ground).dot(d) / dd; };  // 1 sky, 0 ground
+  auto t = [&](int r) {  // 1 sky, 0 ground
+    const int i = r - first;
+    return ((lab.l[i] - ground[0]) * d[0] + (lab.a[i] - ground[1]) * d[1] + (lab.b[i] - ground[2]) * d[2]) / dd;
+  };
   for (int r = best - 2; r <= best + 2; ++r) {
     const float t0 = t(r - 1), t1 = t(r);
     if (t0 >= 0.5f && t1 < 0.5f) {
@@ -454,9 +466,11 @@ std::vector<uint8_t> FindOccluders(const std::vector<ColumnFit>& fits, int image
 
 // Scratch images of one extraction (work size; `_h` at half of it).
 struct Workspace {
-  cv::Mat reduced, small, small_t, lab_t, steps, sky, lab_h, steps_h, sky_h;
+  cv::Mat reduced, small, steps, sky, bins, steps_h, sky_h;
+  LabPlanes lab, lab_h;  // transposed
   EdgePenalty pen, pen_h;
   std::vector<float> acc;
+  RefineScratch refine;
 };
 
 // The image as 8-bit BGR (grey and BGRA converted, BGR shared).
@@ -504,7 +518,6 @@ Skyline ExtractSkyline(const cv::Mat& image, const SkylineOptions& options) {
   if (image.rows < 8 || image.cols < 8) return out;
 
   const cv::Mat bgr = ToBgr(image);
-  const LabConverter to_lab;
 
   // Search at a bounded width.
   const double scale = std::min(1.0, static_cast<double>(options.max_work_width_px) / image.cols);
@@ -541,16 +554,16 @@ Skyline ExtractSkyline(const cv::Mat& image, const SkylineOptions& options) {
   // One row per image column. Not blurred: the area reduction averages
   // already, and a 5 x 5 Gaussian changed no figure on the dev scenes, with or
   // without added pixel noise (measured), for 0.4 ms.
-  const cv::Mat& work_t = ws.lab_t;
-  cv::transpose(small, ws.small_t);  // 8-bit: a quarter of the bytes of a float transpose
-  to_lab.Convert(ws.small_t, ws.lab_t);
+  const LabPlanes& work_t = ws.lab;
+  LabConverter::Instance().ConvertTransposed(small, ws.lab);
+  const int ww = work_t.Rows(), wh = work_t.Cols();
 
   const double roll_rad = DegToRad(options.roll_hint_deg.value_or(0.0));
   const double slope = -std::tan(roll_rad);  // positive roll: the skyline rises to the right
   BoundarySteps(work_t, ws.steps);
   // Pass 1 only gives the first boundary that pass 2 learns the colours of
   // sky and ground from: at half the work size (a quarter of the time).
-  std::vector<int> boundary(work_t.rows);
+  std::vector<int> boundary(ww);
   {
     Halve(work_t, ws.lab_h);
     BoundarySteps(ws.lab_h, ws.steps_h);
@@ -558,15 +571,14 @@ Skyline ExtractSkyline(const cv::Mat& image, const SkylineOptions& options) {
     EdgeAbovePenalty(ws.steps_h, ws.sky_h, ws.lab_h, ws.pen_h);
     const std::vector<int> half =
         SolveBoundary(ws.sky_h, ws.steps_h, ws.pen_h, options.smoothness, options.edge_weight, slope, ws.acc);
-    for (int c = 0; c < work_t.rows; ++c)
-      boundary[c] = std::min(work_t.cols, 2 * half[std::min(c / 2, static_cast<int>(half.size()) - 1)]);
+    for (int c = 0; c < ww; ++c)
+      boundary[c] = std::min(wh, 2 * half[std::min(c / 2, static_cast<int>(half.size()) - 1)]);
   }
-  SkyScoreFromHistograms(work_t, boundary, ws.sky);
+  SkyScoreFromHistograms(work_t, boundary, ws.bins, ws.sky);
   EdgeAbovePenalty(ws.steps, ws.sky, work_t, ws.pen);
   boundary = SolveBoundary(ws.sky, ws.steps, ws.pen, options.smoothness, options.edge_weight, slope, ws.acc);
 
   // No sky: the region above the boundary must look like sky somewhere.
-  const int ww = work_t.rows, wh = work_t.cols;
   {
     double sky_px = 0;
     for (int c = 0; c < ww; ++c) sky_px += boundary[c];
@@ -582,7 +594,7 @@ Skyline ExtractSkyline(const cv::Mat& image, const SkylineOptions& options) {
     const double f = wc - c0;
     const double yb = ((1 - f) * boundary[c0] + f * boundary[c1]) / sy;
     if (yb <= 1.0 || yb >= image.rows - 1.0) continue;  // no boundary inside the image
-    fits[x] = RefineColumn(bgr, to_lab, x, yb, window);
+    fits[x] = RefineColumn(bgr, x, yb, window, ws.refine);
   }
   const std::vector<uint8_t> occluded = FindOccluders(fits, image.rows);
   const int grow = std::max(3, image.cols / 128);  // the occluder's edges and the DP's way round it
