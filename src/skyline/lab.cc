@@ -21,9 +21,9 @@ HR_VECTOR_CLONES void LabFromLinear(const float* __restrict lin_r, const float* 
                                     float* __restrict b) {
   for (int i = 0; i < n; ++i) {
     const float r = lin_r[i], g = lin_g[i], bl = lin_b[i];
-    const float fx = LabF((0.412453f * r + 0.357580f * g + 0.180423f * bl) / 0.950456f);
+    const float fx = LabF((0.412453f * r + 0.357580f * g + 0.180423f * bl) * (1.0f / 0.950456f));
     const float fy = LabF(0.212671f * r + 0.715160f * g + 0.072169f * bl);
-    const float fz = LabF((0.019334f * r + 0.119193f * g + 0.950227f * bl) / 1.088754f);
+    const float fz = LabF((0.019334f * r + 0.119193f * g + 0.950227f * bl) * (1.0f / 1.088754f));
     l[i] = 116.0f * fy - 16.0f;
     a[i] = 500.0f * (fx - fy);
     b[i] = 200.0f * (fy - fz);

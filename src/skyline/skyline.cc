@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 #include <numeric>
 #include <opencv2/imgproc.hpp>
 #include <sstream>
@@ -324,11 +325,14 @@ struct ColumnFit {
   double spread = 0;        // contrast / the largest one-row step: about 1-2 rows for an edge, more for a fade
 };
 
-// A column's pixels as CIELAB planes (refinement scratch).
-struct ColumnLab {
+// Strips of the full-size image around the boundary, `count` rows from row
+// first[x] in every column x, as CIELAB planes (strip x from index x * count),
+// converted in one batch.
+struct LabStrips {
   std::vector<uint8_t> bgr;
   std::vector<float> l, a, b;
-  void Convert(int n) {
+  void Convert() {
+    const int n = static_cast<int>(bgr.size() / 3);
     l.resize(n), a.resize(n), b.resize(n);
     LabConverter::Instance().Convert(bgr.data(), 3, n, l.data(), a.data(), b.data());
   }
@@ -338,42 +342,58 @@ struct ColumnLab {
   }
 };
 
-// Scratch of RefineColumn, kept across columns.
-struct RefineScratch {
-  ColumnLab column, wide;
-  std::vector<float> steps;
+// What the refinement reads: each column's strip (its own colours), and the
+// same strip of the column averaged with kStepColumns neighbours on each
+// side. The steps that choose the boundary row are read from the average
+// (pixel noise in the sky would otherwise pass for the topmost clear step),
+// the crossing and the colours from the column itself.
+struct RefineStrips {
+  int count = 0;
+  std::vector<int> first;  // per column; kNoStrip where the boundary is outside the image
+  LabStrips column, wide;
+  std::vector<float> steps;  // RefineColumn's scratch
   std::vector<int> rows;
+  static constexpr int kNoStrip = std::numeric_limits<int>::min();
 };
 
-// Sub-pixel boundary near row r0 of full-size column x: where the colour
-// crosses half way from the local sky colour to the local ground colour.
-ColumnFit RefineColumn(const cv::Mat& bgr, int x, double y0, int window, RefineScratch& scratch) {
-  ColumnLab &lab = scratch.column, &wide = scratch.wide;
-  const int h = bgr.rows, centre = static_cast<int>(std::lround(y0));
-  // The column's colours over every row used below, converted once, and
-  // those of the column averaged with kStepColumns neighbours on each side:
-  // the steps that choose the boundary row are read from the average (pixel
-  // noise in the sky would otherwise pass for the topmost clear step), the
-  // crossing and the colours from the column itself. Index i is row first + i.
-  const int first = centre - window - 5, last = centre + window + 4, count = last - first + 1;
-  const int c0 = std::max(0, x - kStepColumns), c1 = std::min(bgr.cols - 1, x + kStepColumns), n = c1 - c0 + 1;
-  lab.bgr.resize(3 * count), wide.bgr.resize(3 * count);
-  for (int i = 0; i < count; ++i) {
-    const uint8_t* row = bgr.ptr<uint8_t>(std::clamp(first + i, 0, h - 1));
-    int sum[3] = {0, 0, 0};
-    for (int c = c0; c <= c1; ++c)
-      for (int k = 0; k < 3; ++k) sum[k] += row[3 * c + k];
-    for (int k = 0; k < 3; ++k) {
-      lab.bgr[3 * i + k] = row[3 * x + k];
-      wide.bgr[3 * i + k] = static_cast<uint8_t>((sum[k] + n / 2) / n);
+// Fills the strips: `count` rows from first[x] (rows outside the image
+// repeat the edge row).
+void GatherStrips(const cv::Mat& bgr, RefineStrips& strips) {
+  const int h = bgr.rows, w = bgr.cols, count = strips.count;
+  strips.column.bgr.assign(3 * static_cast<size_t>(w) * count, 0);
+  strips.wide.bgr.assign(strips.column.bgr.size(), 0);
+  for (int x = 0; x < w; ++x) {
+    if (strips.first[x] == RefineStrips::kNoStrip) continue;
+    const int c0 = std::max(0, x - kStepColumns), c1 = std::min(w - 1, x + kStepColumns), n = c1 - c0 + 1;
+    uint8_t* own = strips.column.bgr.data() + 3 * static_cast<size_t>(x) * count;
+    uint8_t* wide = strips.wide.bgr.data() + 3 * static_cast<size_t>(x) * count;
+    for (int i = 0; i < count; ++i) {
+      const uint8_t* row = bgr.ptr<uint8_t>(std::clamp(strips.first[x] + i, 0, h - 1));
+      int sum[3] = {0, 0, 0};
+      for (int c = c0; c <= c1; ++c)
+        for (int k = 0; k < 3; ++k) sum[k] += row[3 * c + k];
+      for (int k = 0; k < 3; ++k) {
+        own[3 * i + k] = row[3 * x + k];
+        wide[3 * i + k] = static_cast<uint8_t>((sum[k] + n / 2) / n);
+      }
     }
   }
-  lab.Convert(count), wide.Convert(count);
+  strips.column.Convert();
+  strips.wide.Convert();
+}
+
+// Sub-pixel boundary of full-size column x (h rows) within `window` rows of
+// row `centre`: where the colour crosses half way from the local sky colour
+// to the local ground colour. The strip holds rows centre - window - 5 to
+// centre + window + 4.
+ColumnFit RefineColumn(RefineStrips& strips, int x, int h, int centre, int window) {
+  const LabStrips &lab = strips.column, &wide = strips.wide;
+  const int first = strips.first[x] - x * strips.count;  // index = row - first
   // The topmost clear step in the window (the paper scans each column from
   // the top for the first edge): a faint far ridge above a contrasty near
   // one is the skyline.
-  std::vector<float>& steps = scratch.steps;
-  std::vector<int>& rows = scratch.rows;
+  std::vector<float>& steps = strips.steps;
+  std::vector<int>& rows = strips.rows;
   steps.clear(), rows.clear();
   int best = centre;
   float best_step = -1;
@@ -470,7 +490,7 @@ struct Workspace {
   LabPlanes lab, lab_h;  // transposed
   EdgePenalty pen, pen_h;
   std::vector<float> acc;
-  RefineScratch refine;
+  RefineStrips refine;
 };
 
 // The image as 8-bit BGR (grey and BGRA converted, BGR shared).
@@ -586,16 +606,24 @@ Skyline ExtractSkyline(const cv::Mat& image, const SkylineOptions& options) {
   }
 
   // Refine each full-size column around the (interpolated) boundary.
-  std::vector<ColumnFit> fits(image.cols);
   const int window = static_cast<int>(std::ceil(1.0 / sy)) + 2;
+  RefineStrips& strips = ws.refine;
+  strips.count = 2 * window + 10;
+  strips.first.assign(image.cols, RefineStrips::kNoStrip);
+  std::vector<int> centres(image.cols);
   for (int x = 0; x < image.cols; ++x) {
     const double wc = std::clamp((x + 0.5) * sx - 0.5, 0.0, ww - 1.0);
     const int c0 = static_cast<int>(wc), c1 = std::min(c0 + 1, ww - 1);
     const double f = wc - c0;
     const double yb = ((1 - f) * boundary[c0] + f * boundary[c1]) / sy;
     if (yb <= 1.0 || yb >= image.rows - 1.0) continue;  // no boundary inside the image
-    fits[x] = RefineColumn(bgr, x, yb, window, ws.refine);
+    centres[x] = static_cast<int>(std::lround(yb));
+    strips.first[x] = centres[x] - window - 5;
   }
+  GatherStrips(bgr, strips);
+  std::vector<ColumnFit> fits(image.cols);
+  for (int x = 0; x < image.cols; ++x)
+    if (strips.first[x] != RefineStrips::kNoStrip) fits[x] = RefineColumn(strips, x, image.rows, centres[x], window);
   const std::vector<uint8_t> occluded = FindOccluders(fits, image.rows);
   const int grow = std::max(3, image.cols / 128);  // the occluder's edges and the DP's way round it
   std::vector<uint8_t> grown(occluded);
