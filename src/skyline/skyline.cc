@@ -94,11 +94,11 @@ HR_VECTOR_CLONES void SkyScoreFromTopBand(const LabPlanes& lab, cv::Mat& s) {
     for (int r = 0; r < h; ++r) {
       const float warm = Logistic((b[r] - 6.0f) / 2.0f) + Logistic((std::abs(a[r]) - 10.0f) / 2.0f);
       not_warm[r] = warm < 1.0f ? 1.0f - warm : 0.0f;
-      deep_blue[r] = Logistic((kDeepBlueB - b[r]) / 3.0f);
+      deep_blue[r] = Logistic((kDeepBlueB - b[r]) * (1.0f / 3));
     }
     for (int r = 0; r < h; ++r) {  // a loop apart: GCC vectorises at most 10 alias tests
-      exp_light[r] = ExpApprox(-l[r] / kDarkScale);
-      exp_ref[r] = ExpApprox((l[r] - kDarkDrop) / kDarkScale);
+      exp_light[r] = ExpApprox(l[r] * (-1.0f / kDarkScale));
+      exp_ref[r] = ExpApprox((l[r] - kDarkDrop) * (1.0f / kDarkScale));
     }
     // Reference lightness: the lightest blue sky seen so far down this
     // column (skies lighten towards the horizon; white clouds are left out).
@@ -113,7 +113,7 @@ HR_VECTOR_CLONES void SkyScoreFromTopBand(const LabPlanes& lab, cv::Mat& s) {
         ref = l[r], exp_ref_now = exp_ref[r];
     }
     for (int r = 0; r < h; ++r) {
-      const float dark = Logistic(((ref_at[r] - kDarkDrop) - l[r]) / kDarkScale);
+      const float dark = Logistic(((ref_at[r] - kDarkDrop) - l[r]) * (1.0f / kDarkScale));
       out[r] = std::max(1.0f - dark, deep_blue[r]) * not_warm[r];
     }
   }
@@ -163,7 +163,7 @@ inline float StepAt(const float* l, const float* a, const float* b, int i0, int 
   // A step down into saturated blue is within the sky (a cloud's base, the
   // renderer's or a real sky's deep blue near the horizon): terrain below
   // the skyline is never that blue, even far and hazy.
-  const float into_deep_blue = Logistic((kDeepBlueB - below_b) / 3.0f);
+  const float into_deep_blue = Logistic((kDeepBlueB - below_b) * (1.0f / 3));
   return (dl > 2.0f ? 0.5f * mag : mag) * (1.0f - into_deep_blue);
 }
 
@@ -229,7 +229,7 @@ HR_VECTOR_CLONES void EdgeAbovePenalty(const cv::Mat& steps_t, const cv::Mat& sk
     // The snow boost, from the colour 2 rows below.
     auto snow = [&](int y, int y2) {
       extra[y] =
-          base[y] * kSnowEdgeBoost * Logistic((l[y2] - 80.0f) / 3.0f) * Logistic((6.0f - std::abs(b[y2])) / 2.0f);
+          base[y] * kSnowEdgeBoost * Logistic((l[y2] - 80.0f) * (1.0f / 3)) * Logistic((6.0f - std::abs(b[y2])) / 2.0f);
     };
     for (int y = 0; y < h - 2; ++y) snow(y, y + 2);
     for (int y = std::max(0, h - 2); y < h; ++y) snow(y, h - 1);
