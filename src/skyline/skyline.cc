@@ -2,12 +2,11 @@
 #include "skyline/skyline.h"
 
 #include <algorithm>
-#include <array>
 #include <cmath>
 #include <limits>
-#include <numeric>
 #include <opencv2/imgproc.hpp>
 #include <sstream>
+#include <vector>
 
 #include "skyline/lab.h"
 #include "util/angles.h"
