@@ -9,11 +9,19 @@
 #include <vector>
 
 #include "skyline/lab.h"
+#include "skyline/refine.h"
 #include "util/angles.h"
 #include "util/errors.h"
 
 namespace horizonreg {
 namespace {
+
+using skyline_detail::ColumnFit;
+using skyline_detail::FindOccluders;
+using skyline_detail::GatherStrips;
+using skyline_detail::Quantile;
+using skyline_detail::RefineColumn;
+using skyline_detail::RefineStrips;
 
 constexpr int kHistBins = 16;             // per CIELAB axis
 constexpr float kColourWeight = 0.25f;    // DP cost per misclassified pixel (edges weigh 1 per delta E)
@@ -22,24 +30,13 @@ constexpr float kEdgeNoise = 4.0f;        // delta E of a step that is still noi
 constexpr float kEdgeCap = 12.0f;         // delta E above which a step counts as fully an edge
 constexpr float kSnowEdgeBoost = 4.0f;    // extra weight of a sharp step into white (snow) left above the boundary
 constexpr float kDeepBlueB = -25.0f;      // b* below which a pixel is saturated blue: sky, never terrain
-constexpr float kTopStepShare = 0.4f;     // refinement: the topmost step at least this share of the strongest wins
-constexpr float kTopStepMin = 5.0f;       // ... and at least this delta E (noise in the sky stays below)
-constexpr int kStepColumns = 2;           // refinement: steps read from the column averaged with 2 on each side
 constexpr double kFogSpreadRows = 2.4;  // median contrast / largest one-row step above which a faint boundary is a fade
-constexpr float kTreeGreen = 7.0f;      // -a* above which a dark boundary is a tree (dark shaded terrain is greyer)
 
 inline int HistIndex(float l, float a, float b) {
   const int li = std::clamp(static_cast<int>(l * (kHistBins / 100.0f)), 0, kHistBins - 1);
   const int ai = std::clamp(static_cast<int>((a + 64.0f) * (kHistBins / 128.0f)), 0, kHistBins - 1);
   const int bi = std::clamp(static_cast<int>((b + 64.0f) * (kHistBins / 128.0f)), 0, kHistBins - 1);
   return (li * kHistBins + ai) * kHistBins + bi;
-}
-
-// The q-quantile (0..1) of a non-empty sample (reorders it).
-double Quantile(std::vector<double>& v, double q) {
-  const auto it = v.begin() + std::min(v.size() - 1, static_cast<size_t>(q * v.size()));
-  std::nth_element(v.begin(), it, v.end());
-  return *it;
 }
 
 // The mean of each 2 x 2 block of a float plane (a half-size plane; an odd
@@ -318,173 +315,6 @@ std::vector<int> SolveBoundary(const cv::Mat& sky_t, const cv::Mat& steps_t, con
     out[c - 1] = std::clamp(best_y - shift[c], 0, h);
   }
   return out;
-}
-
-struct ColumnFit {
-  double y = NAN;
-  double contrast = 0;      // delta E between the local sky and ground colours
-  double ground_l = 0;      // lightness just below the boundary
-  double ground_green = 0;  // -a* just below the boundary (positive = green)
-  double spread = 0;        // contrast / the largest one-row step: about 1-2 rows for an edge, more for a fade
-};
-
-// Strips of the full-size image around the boundary, `count` rows from row
-// first[x] in every column x, as CIELAB planes (strip x from index x * count),
-// converted in one batch.
-struct LabStrips {
-  std::vector<uint8_t> bgr;
-  std::vector<float> l, a, b;
-  void Convert() {
-    const int n = static_cast<int>(bgr.size() / 3);
-    l.resize(n), a.resize(n), b.resize(n);
-    LabConverter::Instance().Convert(bgr.data(), 3, n, l.data(), a.data(), b.data());
-  }
-  float DistanceSq(int i, int j) const {
-    const float dl = l[i] - l[j], da = a[i] - a[j], db = b[i] - b[j];
-    return dl * dl + da * da + db * db;
-  }
-};
-
-// What the refinement reads: each column's strip (its own colours), and the
-// same strip of the column averaged with kStepColumns neighbours on each
-// side. The steps that choose the boundary row are read from the average
-// (pixel noise in the sky would otherwise pass for the topmost clear step),
-// the crossing and the colours from the column itself.
-struct RefineStrips {
-  int count = 0;
-  std::vector<int> first;  // per column; kNoStrip where the boundary is outside the image
-  LabStrips column, wide;
-  std::vector<float> steps;  // RefineColumn's scratch
-  std::vector<int> rows;
-  static constexpr int kNoStrip = std::numeric_limits<int>::min();
-};
-
-// Fills the strips: `count` rows from first[x] (rows outside the image
-// repeat the edge row).
-void GatherStrips(const cv::Mat& bgr, RefineStrips& strips) {
-  const int h = bgr.rows, w = bgr.cols, count = strips.count;
-  strips.column.bgr.assign(3 * static_cast<size_t>(w) * count, 0);
-  strips.wide.bgr.assign(strips.column.bgr.size(), 0);
-  for (int x = 0; x < w; ++x) {
-    if (strips.first[x] == RefineStrips::kNoStrip) continue;
-    const int c0 = std::max(0, x - kStepColumns), c1 = std::min(w - 1, x + kStepColumns), n = c1 - c0 + 1;
-    uint8_t* own = strips.column.bgr.data() + 3 * static_cast<size_t>(x) * count;
-    uint8_t* wide = strips.wide.bgr.data() + 3 * static_cast<size_t>(x) * count;
-    for (int i = 0; i < count; ++i) {
-      const uint8_t* row = bgr.ptr<uint8_t>(std::clamp(strips.first[x] + i, 0, h - 1));
-      int sum[3] = {0, 0, 0};
-      for (int c = c0; c <= c1; ++c)
-        for (int k = 0; k < 3; ++k) sum[k] += row[3 * c + k];
-      for (int k = 0; k < 3; ++k) {
-        own[3 * i + k] = row[3 * x + k];
-        wide[3 * i + k] = static_cast<uint8_t>((sum[k] + n / 2) / n);
-      }
-    }
-  }
-  strips.column.Convert();
-  strips.wide.Convert();
-}
-
-// Sub-pixel boundary of full-size column x (h rows) within `window` rows of
-// row `centre`: where the colour crosses half way from the local sky colour
-// to the local ground colour. The strip holds rows centre - window - 5 to
-// centre + window + 4.
-ColumnFit RefineColumn(RefineStrips& strips, int x, int h, int centre, int window) {
-  const LabStrips &lab = strips.column, &wide = strips.wide;
-  const int first = strips.first[x] - x * strips.count;  // index = row - first
-  // The topmost clear step in the window (the paper scans each column from
-  // the top for the first edge): a faint far ridge above a contrasty near
-  // one is the skyline.
-  std::vector<float>& steps = strips.steps;
-  std::vector<int>& rows = strips.rows;
-  steps.clear(), rows.clear();
-  int best = centre;
-  float best_step = -1;
-  for (int r = centre - window; r <= centre + window; ++r) {
-    if (r < 1 || r >= h) continue;
-    steps.push_back(std::sqrt(wide.DistanceSq(r - first, r - 1 - first)));
-    rows.push_back(r);
-    if (steps.back() > best_step) best_step = steps.back(), best = r;  // the strongest, if no step is clear
-  }
-  const int m = static_cast<int>(steps.size());
-  for (int i = 0; i < m; ++i) {
-    const bool local_max = (i == 0 || steps[i] >= steps[i - 1]) && (i + 1 == m || steps[i] >= steps[i + 1]);
-    if (local_max && steps[i] >= kTopStepShare * best_step && steps[i] >= kTopStepMin) {
-      best = rows[i];
-      break;
-    }
-  }
-  ColumnFit fit;
-  if (best_step < 0) return fit;
-  float sky[3] = {0, 0, 0}, ground[3] = {0, 0, 0};
-  for (int k = 2; k <= 4; ++k) {
-    const int above = best - 1 - k - first, below = best + k - first;
-    sky[0] += lab.l[above], sky[1] += lab.a[above], sky[2] += lab.b[above];
-    ground[0] += lab.l[below], ground[1] += lab.a[below], ground[2] += lab.b[below];
-  }
-  for (int k = 0; k < 3; ++k) sky[k] *= 1.0f / 3, ground[k] *= 1.0f / 3;
-  const float d[3] = {sky[0] - ground[0], sky[1] - ground[1], sky[2] - ground[2]};
-  const float dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-  fit.contrast = std::sqrt(dd);
-  fit.spread = best_step > 0 ? fit.contrast / best_step : 0;
-  fit.ground_l = ground[0];
-  fit.ground_green = -ground[1];
-  if (dd < 1e-6f) return fit;
-  auto t = [&](int r) {  // 1 sky, 0 ground
-    const int i = r - first;
-    return ((lab.l[i] - ground[0]) * d[0] + (lab.a[i] - ground[1]) * d[1] + (lab.b[i] - ground[2]) * d[2]) / dd;
-  };
-  for (int r = best - 2; r <= best + 2; ++r) {
-    const float t0 = t(r - 1), t1 = t(r);
-    if (t0 >= 0.5f && t1 < 0.5f) {
-      fit.y = (r - 0.5) + (t0 - 0.5) / (t0 - t1);
-      return fit;
-    }
-  }
-  fit.y = best;
-  return fit;
-}
-
-std::vector<uint8_t> FindOccluders(const std::vector<ColumnFit>& fits, int image_rows) {
-  // Occluders: trees and poles stand in front of the horizon as narrow
-  // spikes with near-vertical flanks (terrain flanks are far less steep in
-  // the image), or as dark green or black silhouettes, much darker than the
-  // image's typical horizon terrain.
-  const int w = static_cast<int>(fits.size());
-  std::vector<uint8_t> occluded(w, 0);
-  const double steep = 3.5;  // px of rise per column
-  const int max_width = std::max(8, w / 8);
-  auto y_at = [&](int x) { return fits[std::clamp(x, 0, w - 1)].y; };
-  std::vector<int> flank(w, 0);  // -1 rising to the right, +1 falling
-  // A flank: steep here and rising a good height over 6 columns.
-  const double min_rise = std::max(15.0, 0.03 * image_rows);
-  for (int x = 0; x < w; ++x) {
-    const double d = 0.5 * (y_at(x + 1) - y_at(x - 1)), rise = y_at(x + 3) - y_at(x - 3);
-    if (std::isfinite(d) && std::abs(d) > steep && std::abs(rise) > min_rise && d * rise > 0) flank[x] = d < 0 ? -1 : 1;
-  }
-  for (int x = 0; x < w; ++x) {
-    if (flank[x] != -1) continue;
-    // A rising flank, then a falling one within max_width (or the image edge).
-    int end = -1;
-    for (int k = x + 1; k < std::min(w, x + max_width); ++k)
-      if (flank[k] == 1) end = k;
-    if (end < 0 && w - x < max_width) end = w - 1;
-    if (end >= 0) std::fill(occluded.begin() + x, occluded.begin() + end + 1, uint8_t{1});
-  }
-  for (int x = w - 1; x >= 0; --x)  // a falling flank near the left edge
-    if (flank[x] == 1 && x < max_width && std::none_of(flank.begin(), flank.begin() + x, [](int f) { return f == -1; }))
-      std::fill(occluded.begin(), occluded.begin() + x + 1, uint8_t{1});
-  std::vector<double> lights;
-  for (const ColumnFit& f : fits)
-    if (std::isfinite(f.y)) lights.push_back(f.ground_l);
-  const double typical_l = lights.empty() ? 0.0 : Quantile(lights, 0.5);
-  for (int x = 0; x < w; ++x) {
-    const ColumnFit& f = fits[x];
-    const bool dark =
-        f.ground_l < 12.0 || (f.ground_l < 35.0 && f.ground_l < 0.6 * typical_l && f.ground_green > kTreeGreen);
-    if (std::isfinite(f.y) && dark) occluded[x] = 1;
-  }
-  return occluded;
 }
 
 // The mean of each k x k block of an 8-bit BGR image, rounded (the last

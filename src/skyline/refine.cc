@@ -1,0 +1,144 @@
+// SPDX-License-Identifier: MIT
+#include "skyline/refine.h"
+
+#include <algorithm>
+
+namespace horizonreg::skyline_detail {
+namespace {
+
+constexpr float kTopStepShare = 0.4f;  // refinement: the topmost step at least this share of the strongest wins
+constexpr float kTopStepMin = 5.0f;    // ... and at least this delta E (noise in the sky stays below)
+constexpr int kStepColumns = 2;        // refinement: steps read from the column averaged with 2 on each side
+constexpr float kTreeGreen = 7.0f;     // -a* above which a dark boundary is a tree (dark shaded terrain is greyer)
+
+}  // namespace
+
+void GatherStrips(const cv::Mat& bgr, RefineStrips& strips) {
+  const int h = bgr.rows, w = bgr.cols, count = strips.count;
+  strips.column.bgr.assign(3 * static_cast<size_t>(w) * count, 0);
+  strips.wide.bgr.assign(strips.column.bgr.size(), 0);
+  for (int x = 0; x < w; ++x) {
+    if (strips.first[x] == RefineStrips::kNoStrip) continue;
+    const int c0 = std::max(0, x - kStepColumns), c1 = std::min(w - 1, x + kStepColumns), n = c1 - c0 + 1;
+    uint8_t* own = strips.column.bgr.data() + 3 * static_cast<size_t>(x) * count;
+    uint8_t* wide = strips.wide.bgr.data() + 3 * static_cast<size_t>(x) * count;
+    for (int i = 0; i < count; ++i) {
+      const uint8_t* row = bgr.ptr<uint8_t>(std::clamp(strips.first[x] + i, 0, h - 1));
+      int sum[3] = {0, 0, 0};
+      for (int c = c0; c <= c1; ++c)
+        for (int k = 0; k < 3; ++k) sum[k] += row[3 * c + k];
+      for (int k = 0; k < 3; ++k) {
+        own[3 * i + k] = row[3 * x + k];
+        wide[3 * i + k] = static_cast<uint8_t>((sum[k] + n / 2) / n);
+      }
+    }
+  }
+  strips.column.Convert();
+  strips.wide.Convert();
+}
+
+ColumnFit RefineColumn(RefineStrips& strips, int x, int h, int centre, int window) {
+  const LabStrips &lab = strips.column, &wide = strips.wide;
+  const int first = strips.first[x] - x * strips.count;  // index = row - first
+  // The topmost clear step in the window (the paper scans each column from
+  // the top for the first edge): a faint far ridge above a contrasty near
+  // one is the skyline.
+  std::vector<float>& steps = strips.steps;
+  std::vector<int>& rows = strips.rows;
+  steps.clear(), rows.clear();
+  int best = centre;
+  float best_step = -1;
+  for (int r = centre - window; r <= centre + window; ++r) {
+    if (r < 1 || r >= h) continue;
+    steps.push_back(std::sqrt(wide.DistanceSq(r - first, r - 1 - first)));
+    rows.push_back(r);
+    if (steps.back() > best_step) best_step = steps.back(), best = r;  // the strongest, if no step is clear
+  }
+  const int m = static_cast<int>(steps.size());
+  for (int i = 0; i < m; ++i) {
+    const bool local_max = (i == 0 || steps[i] >= steps[i - 1]) && (i + 1 == m || steps[i] >= steps[i + 1]);
+    if (local_max && steps[i] >= kTopStepShare * best_step && steps[i] >= kTopStepMin) {
+      best = rows[i];
+      break;
+    }
+  }
+  ColumnFit fit;
+  if (best_step < 0) return fit;
+  float sky[3] = {0, 0, 0}, ground[3] = {0, 0, 0};
+  for (int k = 2; k <= 4; ++k) {
+    const int above = best - 1 - k - first, below = best + k - first;
+    sky[0] += lab.l[above], sky[1] += lab.a[above], sky[2] += lab.b[above];
+    ground[0] += lab.l[below], ground[1] += lab.a[below], ground[2] += lab.b[below];
+  }
+  for (int k = 0; k < 3; ++k) sky[k] *= 1.0f / 3, ground[k] *= 1.0f / 3;
+  const float d[3] = {sky[0] - ground[0], sky[1] - ground[1], sky[2] - ground[2]};
+  const float dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+  fit.contrast = std::sqrt(dd);
+  fit.spread = best_step > 0 ? fit.contrast / best_step : 0;
+  fit.ground_l = ground[0];
+  fit.ground_green = -ground[1];
+  if (dd < 1e-6f) return fit;
+  auto t = [&](int r) {  // 1 sky, 0 ground
+    const int i = r - first;
+    return ((lab.l[i] - ground[0]) * d[0] + (lab.a[i] - ground[1]) * d[1] + (lab.b[i] - ground[2]) * d[2]) / dd;
+  };
+  for (int r = best - 2; r <= best + 2; ++r) {
+    const float t0 = t(r - 1), t1 = t(r);
+    if (t0 >= 0.5f && t1 < 0.5f) {
+      fit.y = (r - 0.5) + (t0 - 0.5) / (t0 - t1);
+      return fit;
+    }
+  }
+  fit.y = best;
+  return fit;
+}
+
+std::vector<uint8_t> FindOccluders(const std::vector<ColumnFit>& fits, int image_rows) {
+  // Occluders: trees and poles stand in front of the horizon as narrow
+  // spikes with near-vertical flanks (terrain flanks are far less steep in
+  // the image), or as dark green or black silhouettes, much darker than the
+  // image's typical horizon terrain.
+  const int w = static_cast<int>(fits.size());
+  std::vector<uint8_t> occluded(w, 0);
+  const double steep = 3.5;  // px of rise per column
+  const int max_width = std::max(8, w / 8);
+  auto y_at = [&](int x) { return fits[std::clamp(x, 0, w - 1)].y; };
+  std::vector<int> flank(w, 0);  // -1 rising to the right, +1 falling
+  // A flank: steep here and rising a good height over 6 columns.
+  const double min_rise = std::max(15.0, 0.03 * image_rows);
+  for (int x = 0; x < w; ++x) {
+    const double d = 0.5 * (y_at(x + 1) - y_at(x - 1)), rise = y_at(x + 3) - y_at(x - 3);
+    if (std::isfinite(d) && std::abs(d) > steep && std::abs(rise) > min_rise && d * rise > 0) flank[x] = d < 0 ? -1 : 1;
+  }
+  for (int x = 0; x < w; ++x) {
+    if (flank[x] != -1) continue;
+    // A rising flank, then a falling one within max_width (or the image edge).
+    int end = -1;
+    for (int k = x + 1; k < std::min(w, x + max_width); ++k)
+      if (flank[k] == 1) end = k;
+    if (end < 0 && w - x < max_width) end = w - 1;
+    if (end >= 0) std::fill(occluded.begin() + x, occluded.begin() + end + 1, uint8_t{1});
+  }
+  for (int x = w - 1; x >= 0; --x)  // a falling flank near the left edge
+    if (flank[x] == 1 && x < max_width && std::none_of(flank.begin(), flank.begin() + x, [](int f) { return f == -1; }))
+      std::fill(occluded.begin(), occluded.begin() + x + 1, uint8_t{1});
+  std::vector<double> lights;
+  for (const ColumnFit& f : fits)
+    if (std::isfinite(f.y)) lights.push_back(f.ground_l);
+  const double typical_l = lights.empty() ? 0.0 : Quantile(lights, 0.5);
+  for (int x = 0; x < w; ++x) {
+    const ColumnFit& f = fits[x];
+    const bool dark =
+        f.ground_l < 12.0 || (f.ground_l < 35.0 && f.ground_l < 0.6 * typical_l && f.ground_green > kTreeGreen);
+    if (std::isfinite(f.y) && dark) occluded[x] = 1;
+  }
+  return occluded;
+}
+
+double Quantile(std::vector<double>& v, double q) {
+  const auto it = v.begin() + std::min(v.size() - 1, static_cast<size_t>(q * v.size()));
+  std::nth_element(v.begin(), it, v.end());
+  return *it;
+}
+
+}  // namespace horizonreg::skyline_detail

@@ -1,0 +1,74 @@
+// SPDX-License-Identifier: MIT
+// The skyline extractor's full-size stage (internal to the skyline module):
+// each column's sub-pixel boundary near the one the search found at the work
+// size, read from strips of the full-size image, and the columns where a tree
+// or pole stands in front of the horizon.
+#pragma once
+
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <opencv2/core.hpp>
+#include <vector>
+
+#include "skyline/lab.h"
+
+namespace horizonreg::skyline_detail {
+
+// One column's refined boundary and what the occluder and fog tests read.
+struct ColumnFit {
+  double y = NAN;
+  double contrast = 0;      // delta E between the local sky and ground colours
+  double ground_l = 0;      // lightness just below the boundary
+  double ground_green = 0;  // -a* just below the boundary (positive = green)
+  double spread = 0;        // contrast / the largest one-row step: about 1-2 rows for an edge, more for a fade
+};
+
+// Strips of the full-size image around the boundary, `count` rows from row
+// first[x] in every column x, as CIELAB planes (strip x from index x * count),
+// converted in one batch.
+struct LabStrips {
+  std::vector<uint8_t> bgr;
+  std::vector<float> l, a, b;
+  void Convert() {
+    const int n = static_cast<int>(bgr.size() / 3);
+    l.resize(n), a.resize(n), b.resize(n);
+    LabConverter::Instance().Convert(bgr.data(), 3, n, l.data(), a.data(), b.data());
+  }
+  float DistanceSq(int i, int j) const {
+    const float dl = l[i] - l[j], da = a[i] - a[j], db = b[i] - b[j];
+    return dl * dl + da * da + db * db;
+  }
+};
+
+// What the refinement reads: each column's strip (its own colours), and the
+// same strip of the column averaged with kStepColumns neighbours on each
+// side. The steps that choose the boundary row are read from the average
+// (pixel noise in the sky would otherwise pass for the topmost clear step),
+// the crossing and the colours from the column itself.
+struct RefineStrips {
+  int count = 0;
+  std::vector<int> first;  // per column; kNoStrip where the boundary is outside the image
+  LabStrips column, wide;
+  std::vector<float> steps;  // RefineColumn's scratch
+  std::vector<int> rows;
+  static constexpr int kNoStrip = std::numeric_limits<int>::min();
+};
+
+// Fills the strips: `count` rows from first[x] (rows outside the image
+// repeat the edge row), and converts them.
+void GatherStrips(const cv::Mat& bgr, RefineStrips& strips);
+
+// Sub-pixel boundary of full-size column x (h rows) within `window` rows of
+// row `centre`: where the colour crosses half way from the local sky colour
+// to the local ground colour. The strip holds rows centre - window - 5 to
+// centre + window + 4.
+ColumnFit RefineColumn(RefineStrips& strips, int x, int h, int centre, int window);
+
+// 1 for the columns where an occluder (tree, pole) hides the horizon.
+std::vector<uint8_t> FindOccluders(const std::vector<ColumnFit>& fits, int image_rows);
+
+// The q-quantile (0..1) of a non-empty sample (reorders it).
+double Quantile(std::vector<double>& v, double q);
+
+}  // namespace horizonreg::skyline_detail
