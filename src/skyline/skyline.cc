@@ -92,16 +92,17 @@ HR_VECTOR_CLONES void SkyScoreFromTopBand(const LabPlanes& lab, cv::Mat& s) {
       not_warm[r] = warm < 1.0f ? 1.0f - warm : 0.0f;
       deep_blue[r] = Logistic((kDeepBlueB - b[r]) * (1.0f / 3));
     }
+    auto exp_of_ref = [](float ref) { return ExpApprox((ref - kDarkDrop) * (1.0f / kDarkScale)); };
     for (int r = 0; r < h; ++r) {  // a loop apart: GCC vectorises at most 10 alias tests
       exp_light[r] = ExpApprox(l[r] * (-1.0f / kDarkScale));
-      exp_ref[r] = ExpApprox((l[r] - kDarkDrop) * (1.0f / kDarkScale));
+      exp_ref[r] = exp_of_ref(l[r]);
     }
     // Reference lightness: the lightest blue sky seen so far down this
     // column (skies lighten towards the horizon; white clouds are left out).
     // The only sequential part, so it decides "sky score > 0.5" without the
     // logistic: (1 - dark) * not_warm > 0.5, with dark = logistic(x) and
     // x = (ref - drop - l) / scale, holds when e^x < 2 not_warm - 1.
-    float ref = lm, exp_ref_now = ExpApprox((lm - kDarkDrop) / kDarkScale);
+    float ref = lm, exp_ref_now = exp_of_ref(lm);
     for (int r = 0; r < h; ++r) {
       ref_at[r] = ref;
       if (b[r] < -8.0f && l[r] > ref &&
@@ -215,20 +216,16 @@ HR_VECTOR_CLONES void EdgeAbovePenalty(const cv::Mat& steps_t, const cv::Mat& sk
       bl[k] = s[k] > 0.05f && b[k] < 0.0f ? likeness : 0.0f;
     }
     for (int k = 0; k < h; ++k) is_blue[k] = bl[k] > 0.5f ? 1 : 0;
-    // Row y, with y1, y2 the next two rows (clamped).
+    // Row y, with y1, y2 the next two rows (clamped); the snow boost from
+    // the colour at y2.
     auto at = [&](int y, int y1, int y2) {
       const float blue_sky = std::max(bl[y], std::max(bl[y1], bl[y2]));
+      const float white = Logistic((l[y2] - 80.0f) * (1.0f / 3)) * Logistic((6.0f - std::abs(b[y2])) / 2.0f);
       base[y] = e[y] <= kEdgeNoise ? 0.0f : (e[y] - kEdgeNoise) * (1.0f - blue_sky);
+      extra[y] = base[y] * kSnowEdgeBoost * white;
     };
     for (int y = 0; y < h - 2; ++y) at(y, y + 1, y + 2);
     for (int y = std::max(0, h - 2); y < h; ++y) at(y, std::min(y + 1, h - 1), h - 1);
-    // The snow boost, from the colour 2 rows below.
-    auto snow = [&](int y, int y2) {
-      extra[y] =
-          base[y] * kSnowEdgeBoost * Logistic((l[y2] - 80.0f) * (1.0f / 3)) * Logistic((6.0f - std::abs(b[y2])) / 2.0f);
-    };
-    for (int y = 0; y < h - 2; ++y) snow(y, y + 2);
-    for (int y = std::max(0, h - 2); y < h; ++y) snow(y, h - 1);
   }
 }
 
