@@ -53,8 +53,8 @@ TEST(SceneHorizon, ProjectedDemHorizonMatchesRenderedSkylines) {
     const HorizonProfile p = ComputeHorizon(w, eye, o);
     CameraIntrinsics k = CameraIntrinsics::FromHfov(t["width"], t["height"], t["hfov_deg"]);
     k.focal_px = t["focal_px"];
-    k.cx = t["principal_point"][0];
-    k.cy = t["principal_point"][1];
+    k.cx_px = t["principal_point"][0];
+    k.cy_px = t["principal_point"][1];
     const Eigen::Matrix3d m = CamFromEnu({t["yaw_deg"], t["pitch_deg"], t["roll_deg"]});
     std::vector<double> err;
     for (int c = 0; c < k.width; ++c) {

@@ -15,8 +15,8 @@ namespace {
 TEST(CameraIntrinsics, FromHfovGivesDesignFocal) {
   const CameraIntrinsics k = CameraIntrinsics::FromHfov(1024, 683, 30.0);
   EXPECT_NEAR(k.focal_px, 1910.8100134752654, 1e-9);  // (W / 2) / tan(hfov / 2)
-  EXPECT_DOUBLE_EQ(k.cx, 512.0);
-  EXPECT_DOUBLE_EQ(k.cy, 341.5);
+  EXPECT_DOUBLE_EQ(k.cx_px, 512.0);
+  EXPECT_DOUBLE_EQ(k.cy_px, 341.5);
   EXPECT_NEAR(k.HfovDeg(), 30.0, 1e-12);
   EXPECT_NO_THROW(k.Check());
   CameraIntrinsics bad = k;

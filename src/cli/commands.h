@@ -8,6 +8,7 @@
 
 #include "camera/camera.h"
 #include "horizon/horizon.h"
+#include "skyline/skyline.h"
 
 namespace CLI {
 class App;
@@ -38,12 +39,13 @@ int RunSkyline(const SkylineArgs& args);
 struct RegisterArgs {
   std::string image;
   std::vector<std::string> dem;
-  std::optional<double> lat, lon, agl, alt, hfov;
-  std::string sensors, hfov_range, json, overlay, landmarks, initial;
+  std::optional<double> lat, lon, agl, alt, hfov, position_sigma;
+  std::string sensors, hfov_range, json, overlay, landmarks, initial, camera, skyline;
   double refraction = kDefaultRefraction;
   double max_distance = 100'000.0;
   double step = 0.1;  // finer than `horizon`'s default: each bin holds its maximum, 0.25 deg bins bias pitch
   bool no_exif = false;
+  bool pinhole = false;
 };
 void AddRegisterCommand(CLI::App& app, RegisterArgs& args);
 int RunRegister(const RegisterArgs& args);
@@ -64,6 +66,12 @@ struct CameraPoseFile {
   double focal_px = 0.0;
 };
 CameraPoseFile ReadPoseFile(const std::string& path);
+
+// A skyline JSON as `skyline --json` writes it (DESIGN.md): {"width",
+// "height", "y": [y or null], "confidence": [...] (optional)}. Throws
+// InvalidArgument naming the file when it is malformed or not for a
+// width x height image.
+Skyline ReadSkylineJson(const std::string& path, int width, int height);
 
 struct RenderArgs {
   std::vector<std::string> dem;

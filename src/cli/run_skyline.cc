@@ -1,12 +1,14 @@
 // SPDX-License-Identifier: MIT
 #include <CLI/CLI.hpp>
 #include <chrono>
+#include <fstream>
 #include <nlohmann/json.hpp>
 
 #include "cli/commands.h"
 #include "cli/image_io.h"
 #include "cli/output.h"
 #include "skyline/skyline.h"
+#include "util/errors.h"
 
 namespace horizonreg::cli {
 
@@ -41,6 +43,34 @@ int RunSkyline(const SkylineArgs& a) {
   if (!a.debug.empty()) WriteImage(a.debug, DrawSkylineDebug(image, s));
   WriteOutput(a.json.empty() ? "-" : a.json, j.dump() + "\n");
   return 0;
+}
+
+Skyline ReadSkylineJson(const std::string& path, int width, int height) {
+  std::ifstream in(path);
+  if (!in) throw IoError("skyline: cannot open '" + path + "'");
+  const nlohmann::json j = nlohmann::json::parse(in, nullptr, /*allow_exceptions=*/false);
+  auto bad = [&](const std::string& what) -> Skyline { throw InvalidArgument("skyline: '" + path + "': " + what); };
+  if (!j.is_object() || !j.contains("y") || !j["y"].is_array()) return bad("not a skyline JSON (no \"y\" array)");
+  if (!j.contains("width") || !j["width"].is_number_integer() || !j.contains("height") ||
+      !j["height"].is_number_integer())
+    return bad("no integer \"width\" and \"height\"");
+  if (j["width"].get<int>() != width || j["height"].get<int>() != height || static_cast<int>(j["y"].size()) != width)
+    return bad("not for a " + std::to_string(width) + " x " + std::to_string(height) + " image");
+  Skyline s;
+  s.width = width;
+  s.height = height;
+  s.y.assign(width, NAN);
+  s.confidence.assign(width, 0.0);
+  const bool has_conf = j.contains("confidence") && j["confidence"].is_array() && j["confidence"].size() == j["y"].size();
+  for (int x = 0; x < width; ++x) {
+    const auto& v = j["y"][x];
+    if (v.is_null()) continue;
+    if (!v.is_number() || !std::isfinite(v.get<double>()) || v.get<double>() < -height || v.get<double>() > 2.0 * height)
+      return bad("y[" + std::to_string(x) + "] is not a row number or null");
+    s.y[x] = v.get<double>();
+    s.confidence[x] = has_conf && j["confidence"][x].is_number() ? std::clamp(j["confidence"][x].get<double>(), 0.0, 1.0) : 1.0;
+  }
+  return s;
 }
 
 }  // namespace horizonreg::cli

@@ -15,13 +15,6 @@ namespace {
 using internal::SweepPoint;
 using internal::SweepSetup;
 
-template <typename T>
-[[noreturn]] void ThrowField(const char* field, T value, const char* rule) {
-  std::ostringstream m;
-  m << field << " = " << value << "; violated: " << rule;
-  throw InvalidArgument(m.str());
-}
-
 // Per-bin maxima of one thread.
 class HorizonAccumulator {
  public:
@@ -260,6 +253,21 @@ HorizonProfile ComputeHorizon(const TerrainWindow& terrain, const GeodeticPoint&
   out.lat_deg.assign(n, NAN);
   out.lon_deg.assign(n, NAN);
   out.height_m.assign(n, NAN);
+  out.post_spacing_m.assign(n, NAN);
+  std::vector<double> spacing;
+  for (const DemGrid& g : terrain.grids) spacing.push_back(g.width >= 2 && g.height >= 2 ? g.SpacingM() : NAN);
+  size_t grid = 0;  // the horizon's neighbouring bins mostly lie in the same grid: try the last one first
+  auto spacing_at = [&](double lat, double lon) {
+    if (terrain.grids.size() == 1) return spacing[0];
+    for (size_t k = 0; k < terrain.grids.size(); ++k) {
+      const size_t g = (grid + k) % terrain.grids.size();
+      if (terrain.grids[g].HeightAt(lat, lon)) {
+        grid = g;
+        return spacing[g];
+      }
+    }
+    return *std::max_element(spacing.begin(), spacing.end());
+  };
   const auto& best = accs[0].best();
   for (int i = 0; i < n; ++i) {
     const auto& b = best[i];
@@ -270,6 +278,7 @@ HorizonProfile ComputeHorizon(const TerrainWindow& terrain, const GeodeticPoint&
     out.lat_deg[i] = g.lat_deg;
     out.lon_deg[i] = g.lon_deg;
     out.height_m[i] = b.h;
+    out.post_spacing_m[i] = spacing_at(g.lat_deg, g.lon_deg);
   }
   return out;
 }

@@ -34,6 +34,7 @@ struct HorizonProfile {
   std::vector<double> distance_m;                  // horizontal distance in the observer's ENU frame (= ground
                                                    // distance within 0.1%)
   std::vector<double> lat_deg, lon_deg, height_m;  // the horizon point, height as in the DEM
+  std::vector<double> post_spacing_m;              // post spacing of the DEM grid the horizon point lies in
 
   int size() const { return static_cast<int>(elevation_deg.size()); }
   double AzimuthDeg(int i) const { return i * azimuth_step_deg; }

@@ -10,14 +10,9 @@
 namespace horizonreg {
 
 void ExtremaOptions::Check() const {
-  auto fail = [](const char* field, double v, const char* rule) {
-    std::ostringstream m;
-    m << "ExtremaOptions::" << field << " = " << v << "; violated: " << rule;
-    throw InvalidArgument(m.str());
-  };
   if (!(min_prominence >= 0.0) || !std::isfinite(min_prominence))
-    fail("min_prominence", min_prominence, "0 <= min_prominence < inf");
-  if (max_count < 0) fail("max_count", max_count, "max_count >= 0");
+    ThrowField("ExtremaOptions::min_prominence", min_prominence, "0 <= min_prominence < inf");
+  if (max_count < 0) ThrowField("ExtremaOptions::max_count", max_count, "max_count >= 0");
 }
 
 namespace {

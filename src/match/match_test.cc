@@ -144,7 +144,7 @@ TEST(TwoPointPose, RecoversAnyPoseAndFocalExactly) {
     if ((q1 - q2).norm() < 50) continue;
     const AzEl a1 = AzElFromEnu(UnprojectToEnu(m, k, q1)), a2 = AzElFromEnu(UnprojectToEnu(m, k, q2));
     const auto all = TwoPointPoses({q1.x(), q1.y()}, {q2.x(), q2.y()}, {a1.azimuth_deg, a1.elevation_deg},
-                                   {a2.azimuth_deg, a2.elevation_deg}, k.cx, k.cy, 100.0, 20000.0);
+                                   {a2.azimuth_deg, a2.elevation_deg}, k.cx_px, k.cy_px, 100.0, 20000.0);
     const auto s = std::min_element(all.begin(), all.end(), [&](const PoseHypothesis& a, const PoseHypothesis& b) {
       return std::abs(a.focal_px - k.focal_px) < std::abs(b.focal_px - k.focal_px);
     });
@@ -303,9 +303,9 @@ TEST(HorizonDistancePx, PositiveBelowTheSilhouette) {
   const CameraPose pose{50.0, 1.0, 0.0};
   const auto k = CameraIntrinsics::FromHfov(800, 600, 50.0);
   const auto rows = ProjectedHorizonRows(p, pose, k);
-  EXPECT_NEAR(HorizonDistancePx(p, pose, k.focal_px, 800, 600, 400.5, rows[400]), 0.0, 1e-3);
-  EXPECT_GT(HorizonDistancePx(p, pose, k.focal_px, 800, 600, 400.5, rows[400] + 5), 2.0);
-  EXPECT_LT(HorizonDistancePx(p, pose, k.focal_px, 800, 600, 400.5, rows[400] - 5), -2.0);
+  EXPECT_NEAR(HorizonDistancePx(p, pose, k, 400.5, rows[400]), 0.0, 1e-3);
+  EXPECT_GT(HorizonDistancePx(p, pose, k, 400.5, rows[400] + 5), 2.0);
+  EXPECT_LT(HorizonDistancePx(p, pose, k, 400.5, rows[400] - 5), -2.0);
 }
 
 }  // namespace

@@ -1,10 +1,7 @@
 // SPDX-License-Identifier: MIT
 #include "match/register.h"
 
-#include <ceres/ceres.h>
-#include <ceres/dynamic_autodiff_cost_function.h>
-#include <ceres/manifold.h>
-
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 #include <numeric>
@@ -13,210 +10,98 @@
 
 #include "geo/geodesy.h"
 #include "match/extrema.h"
+#include "match/fit.h"
 #include "match/hypothesis.h"
 #include "util/angles.h"
 #include "util/errors.h"
-#include "util/fast_math.h"
 
 namespace horizonreg {
 
+using match_detail::Column;
+using match_detail::HorizonLookup;
+using match_detail::LeastSquaresOptions;
+using match_detail::PaperCorrection;
+using match_detail::Pose4;
+using match_detail::Refined;
+using match_detail::Scorer;
+
 void SensorPrior::Check() const {
-  auto fail = [](const char* field, double v, const char* rule) {
-    std::ostringstream m;
-    m << "SensorPrior::" << field << " = " << v << "; violated: " << rule;
-    throw InvalidArgument(m.str());
-  };
-  if (compass_deg && !std::isfinite(*compass_deg)) fail("compass_deg", *compass_deg, "finite");
-  if (pitch_deg && !(std::abs(*pitch_deg) <= 90.0)) fail("pitch_deg", *pitch_deg, "-90 <= pitch <= 90");
-  if (roll_deg && !(std::abs(*roll_deg) <= 180.0)) fail("roll_deg", *roll_deg, "-180 <= roll <= 180");
+  if (compass_deg && !std::isfinite(*compass_deg)) ThrowField("SensorPrior::compass_deg", *compass_deg, "finite");
+  if (pitch_deg && !(std::abs(*pitch_deg) <= 90.0))
+    ThrowField("SensorPrior::pitch_deg", *pitch_deg, "-90 <= pitch <= 90");
+  if (roll_deg && !(std::abs(*roll_deg) <= 180.0)) ThrowField("SensorPrior::roll_deg", *roll_deg, "-180 <= roll <= 180");
   if (!(compass_sigma_deg > 0.0 && compass_sigma_deg < 180.0))
-    fail("compass_sigma_deg", compass_sigma_deg, "0 < sigma < 180");
+    ThrowField("SensorPrior::compass_sigma_deg", compass_sigma_deg, "0 < sigma < 180");
   if (!(inclinometer_sigma_deg > 0.0 && inclinometer_sigma_deg < 90.0))
-    fail("inclinometer_sigma_deg", inclinometer_sigma_deg, "0 < sigma < 90");
-  if (!(gate_sigmas > 0.0 && std::isfinite(gate_sigmas))) fail("gate_sigmas", gate_sigmas, "0 < gate_sigmas < inf");
+    ThrowField("SensorPrior::inclinometer_sigma_deg", inclinometer_sigma_deg, "0 < sigma < 90");
+  if (!(gate_sigmas > 0.0 && std::isfinite(gate_sigmas)))
+    ThrowField("SensorPrior::gate_sigmas", gate_sigmas, "0 < gate_sigmas < inf");
+}
+
+void DemErrorModel::Check() const {
+  if (!(flattening_spacings >= 0.0 && flattening_spacings <= 10.0))
+    ThrowField("DemErrorModel::flattening_spacings", flattening_spacings, "0 <= value <= 10");
+  if (!(flattening_floor_deg >= 0.0 && flattening_floor_deg <= 5.0))
+    ThrowField("DemErrorModel::flattening_floor_deg", flattening_floor_deg, "0 <= value <= 5");
+  if (!(position_sigma_m >= 0.0 && position_sigma_m <= 100'000.0))
+    ThrowField("DemErrorModel::position_sigma_m", position_sigma_m, "0 <= value <= 100 km");
+  if (!(height_sigma_m >= 0.0 && height_sigma_m <= 100'000.0))
+    ThrowField("DemErrorModel::height_sigma_m", height_sigma_m, "0 <= value <= 100 km");
 }
 
 void RegistrationOptions::Check() const {
-  auto fail = [](const char* field, double v, const char* rule) {
-    std::ostringstream m;
-    m << "RegistrationOptions::" << field << " = " << v << "; violated: " << rule;
-    throw InvalidArgument(m.str());
-  };
-  if (!(min_hfov_deg > 0.0 && min_hfov_deg < 170.0)) fail("min_hfov_deg", min_hfov_deg, "0 < min_hfov_deg < 170");
+  if (!(min_hfov_deg > 0.0 && min_hfov_deg < 170.0))
+    ThrowField("RegistrationOptions::min_hfov_deg", min_hfov_deg, "0 < min_hfov_deg < 170");
   if (!(max_hfov_deg >= min_hfov_deg && max_hfov_deg < 170.0))
-    fail("max_hfov_deg", max_hfov_deg, "min_hfov_deg <= max_hfov_deg < 170");
+    ThrowField("RegistrationOptions::max_hfov_deg", max_hfov_deg, "min_hfov_deg <= max_hfov_deg < 170");
+  if (known_intrinsics) known_intrinsics->Check();
+  if (!(distortion_min_span >= 0.0 && distortion_min_span <= 1.0))
+    ThrowField("RegistrationOptions::distortion_min_span", distortion_min_span, "0 <= span <= 1");
+  if (!(distortion_prior_sigma > 0.0))
+    ThrowField("RegistrationOptions::distortion_prior_sigma", distortion_prior_sigma, "> 0");
   if (!(max_abs_roll_deg >= 0.0 && max_abs_roll_deg <= 180.0))
-    fail("max_abs_roll_deg", max_abs_roll_deg, "0 <= max_abs_roll_deg <= 180");
-  if (image_extrema < 2) fail("image_extrema", image_extrema, "image_extrema >= 2");
-  if (horizon_extrema < 2) fail("horizon_extrema", horizon_extrema, "horizon_extrema >= 2");
-  if (!(min_image_prominence_px >= 0.0)) fail("min_image_prominence_px", min_image_prominence_px, ">= 0");
-  if (!(min_horizon_prominence_deg >= 0.0)) fail("min_horizon_prominence_deg", min_horizon_prominence_deg, ">= 0");
-  if (coarse_columns < 8) fail("coarse_columns", coarse_columns, "coarse_columns >= 8");
-  if (refine_columns < 8) fail("refine_columns", refine_columns, "refine_columns >= 8");
-  if (candidates < 2) fail("candidates", candidates, "candidates >= 2");
-  if (quick_columns < 8) fail("quick_columns", quick_columns, "quick_columns >= 8");
-  if (refined_candidates < 2) fail("refined_candidates", refined_candidates, "refined_candidates >= 2");
-  if (num_threads < 1) fail("num_threads", num_threads, "num_threads >= 1");
-  if (!(inlier_px > 0.0)) fail("inlier_px", inlier_px, "inlier_px > 0");
+    ThrowField("RegistrationOptions::max_abs_roll_deg", max_abs_roll_deg, "0 <= max_abs_roll_deg <= 180");
+  if (image_extrema < 2) ThrowField("RegistrationOptions::image_extrema", image_extrema, "image_extrema >= 2");
+  if (horizon_extrema < 2) ThrowField("RegistrationOptions::horizon_extrema", horizon_extrema, "horizon_extrema >= 2");
+  if (!(min_image_prominence_px >= 0.0))
+    ThrowField("RegistrationOptions::min_image_prominence_px", min_image_prominence_px, ">= 0");
+  if (!(min_horizon_prominence_deg >= 0.0))
+    ThrowField("RegistrationOptions::min_horizon_prominence_deg", min_horizon_prominence_deg, ">= 0");
+  if (coarse_columns < 8) ThrowField("RegistrationOptions::coarse_columns", coarse_columns, "coarse_columns >= 8");
+  if (refine_columns < 8) ThrowField("RegistrationOptions::refine_columns", refine_columns, "refine_columns >= 8");
+  if (candidates < 2) ThrowField("RegistrationOptions::candidates", candidates, "candidates >= 2");
+  if (quick_columns < 8) ThrowField("RegistrationOptions::quick_columns", quick_columns, "quick_columns >= 8");
+  if (refined_candidates < 2)
+    ThrowField("RegistrationOptions::refined_candidates", refined_candidates, "refined_candidates >= 2");
+  if (num_threads < 1) ThrowField("RegistrationOptions::num_threads", num_threads, "num_threads >= 1");
+  if (!(inlier_px > 0.0)) ThrowField("RegistrationOptions::inlier_px", inlier_px, "inlier_px > 0");
+  if (!(outlier_share > 0.0 && outlier_share < 1.0))
+    ThrowField("RegistrationOptions::outlier_share", outlier_share, "0 < share < 1");
+  dem_error.Check();
   if (!(min_visible_fraction >= 0.0 && min_visible_fraction <= 1.0))
-    fail("min_visible_fraction", min_visible_fraction, "0 <= f <= 1");
+    ThrowField("RegistrationOptions::min_visible_fraction", min_visible_fraction, "0 <= f <= 1");
   if (!(min_inlier_fraction >= 0.0 && min_inlier_fraction <= 1.0))
-    fail("min_inlier_fraction", min_inlier_fraction, "0 <= f <= 1");
-  if (!(max_rms_px > 0.0)) fail("max_rms_px", max_rms_px, "max_rms_px > 0");
-  if (!(min_ambiguity_ratio >= 1.0)) fail("min_ambiguity_ratio", min_ambiguity_ratio, "min_ambiguity_ratio >= 1");
+    ThrowField("RegistrationOptions::min_inlier_fraction", min_inlier_fraction, "0 <= f <= 1");
+  if (!(max_rms_px > 0.0)) ThrowField("RegistrationOptions::max_rms_px", max_rms_px, "max_rms_px > 0");
+  if (!(min_ambiguity_ratio >= 1.0))
+    ThrowField("RegistrationOptions::min_ambiguity_ratio", min_ambiguity_ratio, "min_ambiguity_ratio >= 1");
+  if (!(min_informative_fraction >= 0.0 && min_informative_fraction <= 1.0))
+    ThrowField("RegistrationOptions::min_informative_fraction", min_informative_fraction, "0 <= f <= 1");
+  if (!(min_evidence_nats >= 0.0)) ThrowField("RegistrationOptions::min_evidence_nats", min_evidence_nats, ">= 0");
   prior.Check();
 }
 
 double ToleranceScale(int width) { return std::max(1.0, width / 1000.0); }
 
 CameraIntrinsics Registration::Intrinsics(int width, int height) const {
+  if (intrinsics.width == width && intrinsics.height == height) return intrinsics;
+  if (intrinsics.width > 0) return intrinsics.Resized(width, height);
   CameraIntrinsics k = CameraIntrinsics::FromHfov(width, height, 60.0);
   k.focal_px = focal_px;
   return k;
 }
 
 namespace {
-
-double ScalarOf(double v) { return v; }
-template <typename T, int N>
-double ScalarOf(const ceres::Jet<T, N>& v) {
-  return v.a;
-}
-
-// The DEM horizon's elevation angle (radians) at any azimuth (radians),
-// linear between bin centres, periodic; also for ceres::Jet.
-class HorizonLookup {
- public:
-  explicit HorizonLookup(const HorizonProfile& p)
-      : n_(p.size()),
-        step_rad_(DegToRad(p.azimuth_step_deg)),
-        el_(static_cast<size_t>(n_) + 1),
-        distance_m_(p.distance_m) {
-    for (int i = 0; i < n_; ++i) el_[i] = DegToRad(p.elevation_deg[i]);
-    el_[n_] = el_[0];
-  }
-  template <typename T>
-  T operator()(const T& azimuth_rad) const {
-    const double u = ScalarOf(azimuth_rad) / step_rad_;
-    const double fl = std::floor(u);
-    const int i = static_cast<int>(((static_cast<long long>(fl) % n_) + n_) % n_);
-    const T t = azimuth_rad / step_rad_ - fl;
-    return el_[i] + (el_[i + 1] - el_[i]) * t;
-  }
-  double Slope(double azimuth_rad) const {  // d(elevation)/d(azimuth), dimensionless
-    const int i = Bin(azimuth_rad);
-    return (el_[i + 1] - el_[i]) / step_rad_;
-  }
-  double DistanceM(double azimuth_rad) const {  // of the nearer of the two bins around the azimuth
-    const int i = Bin(azimuth_rad);
-    return std::min(distance_m_[i], distance_m_[(i + 1) % n_]);
-  }
-
- private:
-  int Bin(double azimuth_rad) const {
-    const double u = azimuth_rad / step_rad_;
-    return static_cast<int>(((static_cast<long long>(std::floor(u)) % n_) + n_) % n_);
-  }
-  int n_;
-  double step_rad_;
-  std::vector<double> el_;
-  std::vector<double> distance_m_;
-};
-
-// Near terrain is where the DEM and the world differ most: a post's few
-// metres of error, the GPS error and the eye height move a ridge 100 m away
-// by degrees. Its columns count less in the fit (weight d^2 / (d^2 + d0^2)).
-constexpr double kNearFieldM = 400.0;
-
-struct Column {
-  double x = 0.0, y = 0.0;  // skyline point
-  double weight = 1.0;      // 1 / sqrt(1 + slope^2): vertical to perpendicular distance
-  double fit_weight = 1.0;  // weight times the near-field down-weighting, for the least squares
-};
-
-// Residual of one column, pixels: the DEM horizon's elevation minus the
-// elevation of the ray through (x, y), scaled to pixels across the silhouette.
-template <typename T>
-T ColumnResidual(const Eigen::Matrix<T, 3, 3>& cam_from_enu, const T& f, const Column& c, double weight, double cx,
-                 double cy, const HorizonLookup& horizon) {
-  using std::atan2;
-  using std::sqrt;
-  const T xn = (c.x - cx) / f, yn = (c.y - cy) / f;
-  const Eigen::Matrix<T, 3, 1> ray(xn, yn, T(1.0));
-  const Eigen::Matrix<T, 3, 1> d = cam_from_enu.transpose() * ray;
-  const T az = atan2(d.x(), d.y());
-  const T el = atan2(d.z(), sqrt(d.x() * d.x() + d.y() * d.y()));
-  return (horizon(az) - el) * f * (1.0 + yn * yn) * sqrt(1.0 + xn * xn) * weight;
-}
-
-struct Pose4 {
-  double yaw = 0.0, pitch = 0.0, roll = 0.0;  // radians
-  double f = 1.0;                             // pixels
-  CameraPose ToPose() const {
-    return {WrapAzimuthDeg(RadToDeg(yaw)), RadToDeg(pitch), RadToDeg(std::remainder(roll, 2.0 * kPi))};
-  }
-  static Pose4 From(const CameraPose& p, double f) {
-    return {DegToRad(p.azimuth_deg), DegToRad(p.pitch_deg), DegToRad(p.roll_deg), f};
-  }
-};
-
-class Scorer {
- public:
-  Scorer(const HorizonLookup& horizon, double cx, double cy, double tau)
-      : horizon_(horizon), cx_(cx), cy_(cy), tau2_(tau * tau) {}
-  double Residual(const Eigen::Matrix3d& m, double f, const Column& c) const {
-    return ColumnResidual<double>(m, f, c, c.weight, cx_, cy_, horizon_);
-  }
-  // Mean truncated squared residual; stops early once above `bound`.
-  // ColumnResidual with the fast arctangent (|error| < 2e-7 rad), for scoring.
-  double FastResidual(const Eigen::Matrix3d& m, double f, const Column& c) const {
-    const double xn = (c.x - cx_) / f, yn = (c.y - cy_) / f;
-    const Eigen::Vector3d d = m.transpose() * Eigen::Vector3d(xn, yn, 1.0);
-    const double h = std::sqrt(d.x() * d.x() + d.y() * d.y());
-    const double az = FastAtan2(d.x(), d.y()), el = FastAtan2(d.z(), h);
-    return (horizon_(az) - el) * f * (1.0 + yn * yn) * std::sqrt(1.0 + xn * xn) * c.weight;
-  }
-  double Cost(const Pose4& p, const std::vector<Column>& cols, double bound = INFINITY) const {
-    const Eigen::Matrix3d m = CamFromEnuRad(p.yaw, p.pitch, p.roll);
-    const double limit = bound * cols.size();
-    double sum = 0.0;
-    for (const Column& c : cols) {
-      const double r = FastResidual(m, p.f, c);
-      sum += std::min(r * r, tau2_);
-      if (sum > limit) return INFINITY;
-    }
-    return sum / cols.size();
-  }
-  double InlierFraction(const Pose4& p, const std::vector<Column>& cols) const {
-    const Eigen::Matrix3d m = CamFromEnuRad(p.yaw, p.pitch, p.roll);
-    int n = 0;
-    for (const Column& c : cols) {
-      const double r = FastResidual(m, p.f, c);
-      n += r * r < tau2_;
-    }
-    return cols.empty() ? 0.0 : static_cast<double>(n) / cols.size();
-  }
-  // Column weights for a pose: the slope of the projected silhouette.
-  void Reweight(const Pose4& p, std::vector<Column>& cols) const {
-    const Eigen::Matrix3d m = CamFromEnuRad(p.yaw, p.pitch, p.roll);
-    for (Column& c : cols) {
-      const Eigen::Vector3d d = m.transpose() * Eigen::Vector3d((c.x - cx_) / p.f, (c.y - cy_) / p.f, 1.0);
-      const double az = std::atan2(d.x(), d.y());
-      const double s = horizon_.Slope(az) / std::max(0.05, std::hypot(d.x(), d.y()) / d.norm());
-      c.weight = 1.0 / std::sqrt(1.0 + s * s);
-      const double dist = horizon_.DistanceM(az);
-      c.fit_weight = c.weight * dist * dist / (dist * dist + kNearFieldM * kNearFieldM);
-    }
-  }
-  const HorizonLookup& horizon() const { return horizon_; }
-  double cx() const { return cx_; }
-  double cy() const { return cy_; }
-  double tau2() const { return tau2_; }
-
- private:
-  const HorizonLookup& horizon_;
-  double cx_, cy_, tau2_;
-};
 
 // Calls fn(i, t) for every i in [0, n): item i on worker t = i mod W, with
 // W = min(n, max_workers) threads (the caller's among them); waits for all.
@@ -232,10 +117,55 @@ void ParallelFor(size_t n, int max_workers, Fn fn) {
   for (std::thread& th : pool) th.join();
 }
 
-std::vector<Column> VisibleColumns(const Skyline& skyline) {
+// The skyline in the fitting's coordinates: offsets from the principal
+// point, lens distortion removed when the lens is known (then in pixels of
+// focal length fx), as observed otherwise (principal point at the centre).
+class ImageFrame {
+ public:
+  ImageFrame(const Skyline& skyline, const std::optional<CameraIntrinsics>& known) {
+    if (known) {
+      lens_ = known->width == skyline.width && known->height == skyline.height
+                  ? *known
+                  : known->Resized(skyline.width, skyline.height);
+    }
+    width_ = skyline.width;
+    height_ = skyline.height;
+  }
+  bool known() const { return lens_.has_value(); }
+  // Offset (u, v) of a pixel; nullopt outside the lens model.
+  std::optional<Eigen::Vector2d> Offset(double x, double y) const {
+    if (!lens_) return Eigen::Vector2d(x - width_ / 2.0, y - height_ / 2.0);
+    const auto xy = lens_->NormalizedFromPixel({x, y});
+    if (!xy) return std::nullopt;
+    return Eigen::Vector2d(lens_->focal_px * xy->x(), lens_->focal_px * xy->y());
+  }
+  // The camera for a fitted pose (focal f and k1 when the lens is not known).
+  CameraIntrinsics Intrinsics(const Pose4& p) const {
+    if (lens_) return *lens_;
+    CameraIntrinsics k = CameraIntrinsics::FromHfov(width_, height_, 60.0);
+    k.focal_px = p.f;
+    if (p.k1 != 0.0) k.distortion = LensDistortion::Radial(p.k1);
+    return k;
+  }
+  double KnownFocalPx() const { return lens_ ? lens_->focal_px : NAN; }
+
+ private:
+  std::optional<CameraIntrinsics> lens_;
+  int width_ = 0, height_ = 0;
+};
+
+std::vector<Column> VisibleColumns(const Skyline& skyline, const ImageFrame& frame) {
   std::vector<Column> all;
-  for (int i = 0; i < skyline.width; ++i)
-    if (std::isfinite(skyline.y[i])) all.push_back({i + 0.5, skyline.y[i], 1.0});
+  for (int i = 0; i < skyline.width; ++i) {
+    if (!std::isfinite(skyline.y[i])) continue;
+    const auto uv = frame.Offset(i + 0.5, skyline.y[i]);
+    if (!uv) continue;
+    Column c;
+    c.u = uv->x();
+    c.v = uv->y();
+    c.x_px = i + 0.5;
+    all.push_back(c);
+  }
   return all;
 }
 
@@ -244,191 +174,6 @@ std::vector<Column> Subsample(const std::vector<Column>& all, int count) {
   std::vector<Column> out;
   out.reserve(count);
   for (int i = 0; i < count; ++i) out.push_back(all[(static_cast<size_t>(i) * all.size() + all.size() / 2) / count]);
-  return out;
-}
-
-// All columns in one residual block (the rotation is built once per
-// evaluation); residual i is the column's distance times sqrt(w_i), the
-// iteratively reweighted Cauchy weight.
-struct AllColumnsCost {
-  const std::vector<Column>* cols;
-  const std::vector<double>* sqrt_w;
-  double cx, cy;
-  const HorizonLookup* horizon;
-  template <typename T>
-  bool operator()(T const* const* params, T* residuals) const {
-    const T* p = params[0];
-    const Eigen::Matrix<T, 3, 3> m = CamFromEnuRad(p[0], p[1], p[2]);
-    for (size_t i = 0; i < cols->size(); ++i) {
-      const Column& c = (*cols)[i];
-      residuals[i] = ColumnResidual<T>(m, p[3], c, c.fit_weight * (*sqrt_w)[i], cx, cy, *horizon);
-    }
-    return true;
-  }
-};
-
-struct Refined {
-  Pose4 pose;
-  double sigma[4] = {NAN, NAN, NAN, NAN};
-};
-
-// Robust nonlinear least squares of yaw, pitch, roll and focal length:
-// Levenberg-Marquardt (Ceres) inside iteratively reweighted least squares
-// with the Cauchy loss of scale tau / 3.
-Refined RefineLeastSquares(const Scorer& scorer, const std::vector<Column>& cols, const Pose4& start, double tau,
-                           int rounds, bool want_covariance, double effective_fraction, bool fix_focal = false) {
-  double p[4] = {start.yaw, start.pitch, start.roll, start.f};
-  const double c2 = std::pow(tau / 3.0, 2);
-  std::vector<double> sqrt_w(cols.size(), 1.0);
-  auto reweight = [&] {
-    const Eigen::Matrix3d m = CamFromEnuRad(p[0], p[1], p[2]);
-    for (size_t i = 0; i < cols.size(); ++i) {
-      const double r =
-          ColumnResidual<double>(m, p[3], cols[i], cols[i].fit_weight, scorer.cx(), scorer.cy(), scorer.horizon());
-      sqrt_w[i] = 1.0 / std::sqrt(1.0 + r * r / c2);
-    }
-  };
-  auto* cost = new ceres::DynamicAutoDiffCostFunction<AllColumnsCost, 4>(
-      new AllColumnsCost{&cols, &sqrt_w, scorer.cx(), scorer.cy(), &scorer.horizon()});
-  cost->AddParameterBlock(4);
-  cost->SetNumResiduals(static_cast<int>(cols.size()));
-  ceres::Problem problem;
-  problem.AddResidualBlock(cost, nullptr, p);
-  if (fix_focal) {
-    problem.SetManifold(p, new ceres::SubsetManifold(4, {3}));
-  } else {
-    problem.SetParameterLowerBound(p, 3, 0.2 * start.f);
-    problem.SetParameterUpperBound(p, 3, 5.0 * start.f);
-  }
-  ceres::Solver::Options so;
-  so.linear_solver_type = ceres::DENSE_QR;
-  so.max_num_iterations = 10;
-  so.function_tolerance = 1e-8;
-  so.logging_type = ceres::SILENT;
-  so.num_threads = 1;
-  for (int round = 0; round < rounds; ++round) {
-    reweight();
-    ceres::Solver::Summary summary;
-    ceres::Solve(so, &problem, &summary);
-  }
-  Refined r;
-  r.pose = {p[0], p[1], p[2], p[3]};
-  if (!want_covariance) return r;
-  // Residual variance from the inlier columns.
-  const Eigen::Matrix3d m = CamFromEnuRad(p[0], p[1], p[2]);
-  double ss = 0.0, sw = 0.0;
-  int n = 0;
-  for (size_t i = 0; i < cols.size(); ++i) {
-    const double res =
-        ColumnResidual<double>(m, p[3], cols[i], cols[i].fit_weight, scorer.cx(), scorer.cy(), scorer.horizon());
-    if (std::abs(res) < tau) {
-      ss += res * res * sqrt_w[i] * sqrt_w[i];
-      sw += sqrt_w[i] * sqrt_w[i];
-      ++n;
-    }
-  }
-  if (n <= 4 || !(sw > 4.0)) return r;
-  ceres::Covariance::Options co;
-  co.algorithm_type = ceres::DENSE_SVD;
-  co.null_space_rank = -1;
-  ceres::Covariance covariance(co);
-  std::vector<std::pair<const double*, const double*>> blocks = {{p, p}};
-  if (!covariance.Compute(blocks, &problem)) return r;
-  double cov[16];
-  covariance.GetCovarianceBlock(p, p, cov);
-  // Neighbouring columns share DEM bins and skyline pixels: count only the
-  // independent ones (effective_fraction of the columns).
-  const double variance = ss / (sw - 4.0) / std::clamp(effective_fraction, 1e-3, 1.0);
-  for (int i = 0; i < 4; ++i) r.sigma[i] = std::sqrt(std::max(0.0, cov[i * 5] * variance));
-  return r;
-}
-
-// Paper eq. (11)-(14): closest-point differences between the skyline and the
-// projected DEM silhouette, straight-line fits of their horizontal and
-// vertical components, corrections of azimuth, pitch and C_x = C_y (square
-// pixels); the vertical fit also takes a slope across the image (roll).
-struct PaperCorrection {
-  Pose4 pose;
-  double ex_px = NAN, ey_px = NAN;
-};
-
-PaperCorrection CorrectLinear(const Scorer& scorer, const std::vector<Column>& cols, const Pose4& start, int width,
-                              double tau, const HorizonProfile& profile) {
-  PaperCorrection out{start};
-  for (int iter = 0; iter < 2; ++iter) {
-    const Pose4& p = out.pose;
-    const Eigen::Matrix3d m = CamFromEnuRad(p.yaw, p.pitch, p.roll);
-    CameraIntrinsics k = CameraIntrinsics::FromHfov(width, 2 * static_cast<int>(scorer.cy()), 60.0);
-    k.focal_px = p.f;
-    k.cx = scorer.cx();
-    k.cy = scorer.cy();
-    // DEM silhouette polyline in the image, bins within the field of view.
-    const double half = std::atan(0.6 * width / p.f) + 0.02;
-    std::vector<Eigen::Vector2d> poly;
-    const int n = profile.size();
-    const double yaw_deg = RadToDeg(p.yaw);
-    const int span = static_cast<int>(std::ceil(RadToDeg(half) / profile.azimuth_step_deg)) + 1;
-    const int centre = static_cast<int>(std::lround(WrapAzimuthDeg(yaw_deg) / profile.azimuth_step_deg));
-    for (int j = centre - span; j <= centre + span; ++j) {
-      const int b = ((j % n) + n) % n;
-      if (auto px = ProjectAzEl(m, k, j * profile.azimuth_step_deg, profile.elevation_deg[b])) poly.push_back(*px);
-    }
-    if (poly.size() < 2) return out;
-    // Closest points.
-    std::vector<double> xs, dxs, ys, dys;
-    for (const Column& c : cols) {
-      double best = INFINITY;
-      Eigen::Vector2d q;
-      const Eigen::Vector2d s(c.x, c.y);
-      for (size_t i = 0; i + 1 < poly.size(); ++i) {
-        const Eigen::Vector2d a = poly[i], e = poly[i + 1];
-        if (std::max(a.x(), e.x()) < c.x - 3 * tau || std::min(a.x(), e.x()) > c.x + 3 * tau) continue;
-        const Eigen::Vector2d ab = e - a;
-        const double t = std::clamp((s - a).dot(ab) / std::max(1e-12, ab.squaredNorm()), 0.0, 1.0);
-        const Eigen::Vector2d cand = a + t * ab;
-        const double d2 = (cand - s).squaredNorm();
-        if (d2 < best) {
-          best = d2;
-          q = cand;
-        }
-      }
-      if (!(best < 9 * tau * tau)) continue;
-      xs.push_back(c.x - scorer.cx());
-      ys.push_back(scorer.cy() - c.y);
-      dxs.push_back(q.x() - c.x);
-      dys.push_back(c.y - q.y());  // up positive
-    }
-    const int count = static_cast<int>(xs.size());
-    if (count < 8) return out;
-    double sx2 = 0, sy2 = 0;
-    for (int i = 0; i < count; ++i) {
-      sx2 += dxs[i] * dxs[i];
-      sy2 += dys[i] * dys[i];
-    }
-    out.ex_px = std::sqrt(sx2 / count);  // eq. (13)
-    out.ey_px = std::sqrt(sy2 / count);  // eq. (14)
-    // Eq. (11): dx = a + b x; eq. (12): dy = c + e y (+ g x for roll).
-    Eigen::MatrixXd ax(count, 2), ay(count, 3);
-    Eigen::VectorXd bx(count), by(count);
-    for (int i = 0; i < count; ++i) {
-      ax.row(i) << 1.0, xs[i];
-      ay.row(i) << 1.0, ys[i], xs[i];
-      bx(i) = dxs[i];
-      by(i) = dys[i];
-    }
-    const Eigen::Vector2d lx = ax.colPivHouseholderQr().solve(bx);
-    const Eigen::Vector3d ly = ay.colPivHouseholderQr().solve(by);
-    Pose4 next = p;
-    // A DEM point drawn dx to the right of its image point: the camera looks
-    // dx / f radians too far left. Scale: the DEM spread is (1 + b) too wide.
-    next.yaw += lx(0) / p.f;
-    next.pitch -= ly(0) / p.f;
-    const double scale = 1.0 + 0.5 * (lx(1) + ly(1));
-    if (scale > 0.5 && scale < 2.0) next.f = p.f / scale;
-    next.roll += std::atan(ly(2));
-    if (!std::isfinite(next.yaw + next.pitch + next.f + next.roll)) return out;
-    out.pose = next;
-  }
   return out;
 }
 
@@ -454,7 +199,8 @@ bool WithinPrior(const RegistrationOptions& o, const CameraPose& pose) {
 struct Candidate {
   Pose4 pose;
   double cost = INFINITY;
-  double inliers = 0.0;  // fraction of the columns within tau
+  double inliers = 0.0;  // share of the columns inside the gate
+  double misfit = INFINITY;  // Scorer::Misfit
 };
 
 bool SamePose(const Pose4& a, const Pose4& b, double width) {
@@ -464,12 +210,22 @@ bool SamePose(const Pose4& a, const Pose4& b, double width) {
          std::abs(std::log(a.f / b.f)) < 0.05;
 }
 
+// Within a tenth of the opening angle (at least 1 deg) and 15% in focal
+// length: close enough that, predicting the same skyline, it is the same
+// solution half converged (far poses predicting the same skyline are a
+// repeating horizon: an ambiguity).
+bool NearPose(const Pose4& a, const Pose4& b, double width) {
+  const double tol = std::max(DegToRad(1.0), 0.1 * 2.0 * std::atan(0.5 * width / a.f));
+  return std::abs(std::remainder(a.yaw - b.yaw, 2 * kPi)) < tol && std::abs(a.pitch - b.pitch) < tol &&
+         std::abs(std::log(a.f / b.f)) < 0.15;
+}
+
 // Smallest and largest cosine of the angle between the rays through two
-// pixels for focal lengths in [fmin, fmax] (sampled finely on a log grid,
-// widened by a margin for what falls between samples).
-std::pair<double, double> RayCosineRange(const ImagePoint& p1, const ImagePoint& p2, double cx, double cy, double fmin,
-                                         double fmax) {
-  const Eigen::Vector2d u1(p1.x - cx, p1.y - cy), u2(p2.x - cx, p2.y - cy);
+// image points (offsets from the principal point) for focal lengths in
+// [fmin, fmax] (sampled finely on a log grid, widened by a margin for what
+// falls between samples).
+std::pair<double, double> RayCosineRange(const ImagePoint& p1, const ImagePoint& p2, double fmin, double fmax) {
+  const Eigen::Vector2d u1(p1.x, p1.y), u2(p2.x, p2.y);
   double lo = 1.0, hi = -1.0;
   constexpr int kSteps = 48;
   for (int i = 0; i <= kSteps; ++i) {
@@ -482,63 +238,134 @@ std::pair<double, double> RayCosineRange(const ImagePoint& p1, const ImagePoint&
   return {lo - margin, hi + margin};
 }
 
+// Whether the skyline spans enough of the frame, on both sides of the
+// centre, for k1 to be told apart from the focal length and pitch.
+bool SpansForDistortion(const std::vector<Column>& all, int width, const RegistrationOptions& o) {
+  if (all.size() < 0.5 * width) return false;
+  const double lo = all.front().x_px, hi = all.back().x_px;
+  return lo <= width * (1.0 - o.distortion_min_span) / 2.0 && hi >= width * (1.0 + o.distortion_min_span) / 2.0;
+}
+
 // Final robust fit from `start` with covariance, then the statistics and the
 // acceptance tests (the ambiguity ratio must already be in `out`).
-void FinishRegistration(const Scorer& scorer, std::vector<Column>& all, const Pose4& start, int width, double step,
-                        double tau, double px_scale, bool fix_focal, const RegistrationOptions& options,
-                        Registration& out) {
+void FinishRegistration(const Scorer& scorer, const ImageFrame& frame, std::vector<Column>& all, const Pose4& start,
+                        int width, double step, double px_scale, bool fix_focal, const RegistrationOptions& options,
+                        const std::vector<double>& anneal, Registration& out) {
   scorer.Reweight(start, all);
-  const std::vector<Column> final_cols = Subsample(all, options.refine_columns);
+  std::vector<Column> final_cols = Subsample(all, options.refine_columns);
   const double hfov_rad = 2.0 * std::atan(0.5 * width / start.f);
-  const double independent = std::min(1.0, RadToDeg(hfov_rad) / step / final_cols.size());
-  const Refined fr = RefineLeastSquares(scorer, final_cols, start, tau, 3, true, independent, fix_focal);
-  const Pose4 bp = fr.pose;
-  const Eigen::Matrix3d m = CamFromEnuRad(bp.yaw, bp.pitch, bp.roll);
-  // Near-field columns count by their distance weight: they neither confirm
-  // nor refute a pose much.
-  scorer.Reweight(bp, all);
-  double ss = 0.0, w_in = 0.0, w_all = 0.0;
-  for (const Column& c : all) {
-    const double r = scorer.Residual(m, bp.f, c);
-    const double w = c.fit_weight / c.weight;
-    w_all += w;
-    if (std::abs(r) < tau) {
-      ss += w * r * r;
-      w_in += w;
-    }
+  LeastSquaresOptions lso;
+  lso.rounds = 3;
+  lso.anneal = anneal;
+  lso.fix_focal = fix_focal || frame.known();
+  lso.want_covariance = true;
+  lso.effective_fraction = std::min(1.0, RadToDeg(hfov_rad) / step / final_cols.size());
+  lso.fit_k1 = !frame.known() && options.estimate_distortion && SpansForDistortion(all, width, options);
+  lso.k1_prior_sigma = options.distortion_prior_sigma;
+  Refined fr = RefineLeastSquares(scorer, final_cols, start, lso);
+  if (lso.fit_k1) {
+    // Reweighted for the fitted pose and lens, once more.
+    scorer.Reweight(fr.pose, final_cols);
+    lso.anneal.clear();
+    lso.rounds = 2;
+    fr = RefineLeastSquares(scorer, final_cols, fr.pose, lso);
   }
+  const Pose4 bp = fr.pose;
+  scorer.Reweight(bp, all);
+  const match_detail::FitStats stats = match_detail::ComputeFitStats(scorer, bp, all);
   out.pose = bp.ToPose();
   out.focal_px = bp.f;
-  out.hfov_deg = RadToDeg(2.0 * std::atan(0.5 * width / bp.f));
-  out.inlier_fraction = w_all > 0 ? w_in / w_all : 0.0;
-  out.rms_px = w_in > 0 ? std::sqrt(ss / w_in) : NAN;
+  out.hfov_deg = HfovFromFocalDeg(bp.f, width);
+  out.intrinsics = frame.Intrinsics(bp);
+  out.center_ray = CenterRayPose(out.pose, out.intrinsics);
+  out.distortion_estimated = lso.fit_k1;
+  out.k1_sigma = lso.fit_k1 ? fr.sigma[4] : NAN;
+  out.inlier_fraction = stats.inlier_fraction;
+  out.informative_columns = stats.informative_columns;
+  out.independent_inliers = stats.independent_inliers;
+  out.rms_px = stats.rms_px;
+  out.model_rms_px = stats.model_rms_px;
+  const double scale = out.dem.flattening_scale;
+  out.dem = stats.dem;
+  out.dem.flattening_scale = scale;
   out.azimuth_sigma_deg = RadToDeg(fr.sigma[0]);
   out.pitch_sigma_deg = RadToDeg(fr.sigma[1]);
   out.roll_sigma_deg = RadToDeg(fr.sigma[2]);
   out.focal_sigma_px = fr.sigma[3];
+  // Evidence against the best other solution (or, when none was searched,
+  // against every column being an outlier): the likelihood ratio, with the
+  // cost of each pose's tolerance width (a zoomed-in view that lets every
+  // column fit a wide band explains it less), over the independent samples.
+  out.misfit = scorer.Misfit(bp, all);
+  const double cost = scorer.Cost(bp, all);
+  const double second = std::isfinite(out.second_cost) ? out.second_cost : match_detail::kGateChi2;
+  out.evidence_nats = stats.independent_inliers * (second - cost) / 2.0;
   std::ostringstream why;
-  if (out.inlier_fraction < options.min_inlier_fraction)
+  why.precision(3);
+  if (stats.informative_columns < options.min_informative_fraction * width)
+    why << "the horizon seen is too near or the DEM too coarse to tell the pose (informative columns "
+        << std::lround(100.0 * stats.informative_columns / width) << "% of the width)";
+  else if (out.inlier_fraction < options.min_inlier_fraction)
     why << "only " << std::lround(100 * out.inlier_fraction) << "% of the skyline fits the DEM horizon";
-  else if (!(out.rms_px <= options.max_rms_px * px_scale))
-    why << "residual " << out.rms_px << " px too large";
+  else if (!(stats.model_rms_px <= options.max_rms_px * px_scale))
+    why << "residual " << stats.model_rms_px << " px too large";
   else if (out.ambiguity_ratio < options.min_ambiguity_ratio)
-    why << "ambiguous: another pose fits almost as well (cost ratio " << out.ambiguity_ratio << ")";
+    why << "ambiguous: another pose fits almost as well (misfit ratio " << out.ambiguity_ratio << ")";
+  else if (out.evidence_nats < options.min_evidence_nats)
+    why << "too little evidence: " << std::lround(out.evidence_nats) << " nats over "
+        << std::lround(stats.independent_inliers) << " independent DEM samples (near terrain or a zoomed-in view)";
   out.message = why.str();
   out.registered = out.message.empty();
   if (out.registered) out.message = "registered";
 }
 
+// The skyline's pixel noise (1 sigma) for an image `width` pixels wide.
+double SigmaPx(const RegistrationOptions& o, int width) { return o.inlier_px * ToleranceScale(width) / 3.0; }
+
+constexpr double kMinFlatteningScale = 0.1, kMaxFlatteningScale = 2.0;
+
+// How much of the DEM error model's flattening this image shows at pose p:
+// the columns' excess over the DEM horizon in units of the model's
+// tolerance, whose median over ln 2 is the scale of an exponential excess;
+// within [0.1, 2]. A rendered view of the same DEM hugs it (about 0.1); a
+// photo over a coarse DEM stands above its cut peaks (about 1). 1 when too
+// few columns have a tolerance worth measuring.
+double EstimateFlatteningScale(const Scorer& scorer, const Pose4& p, std::vector<Column> cols) {
+  scorer.Reweight(p, cols);
+  const Eigen::Matrix3d m = CamFromEnuRad(p.yaw, p.pitch, p.roll);
+  std::vector<double> ratios;
+  for (const Column& c : cols) {
+    if (!(c.flattening_px > 0.5 * scorer.sigma_px())) continue;
+    const double r = scorer.Residual(m, p, c);
+    if (r > 3.0 * c.noise_px) continue;  // below the DEM horizon by more than the noise: misread, not flattening
+    ratios.push_back(std::max(0.0, -r) / c.flattening_px);
+  }
+  if (ratios.size() < 20) return 1.0;
+  std::nth_element(ratios.begin(), ratios.begin() + ratios.size() / 2, ratios.end());
+  return std::clamp(ratios[ratios.size() / 2] / std::log(2.0), kMinFlatteningScale, kMaxFlatteningScale);
+}
+
+DemErrorModel ScaledModel(DemErrorModel m, double scale) {
+  m.flattening_spacings *= scale;
+  m.flattening_floor_deg *= scale;
+  return m;
+}
+
 }  // namespace
 
-double HorizonDistancePx(const HorizonProfile& horizon, const CameraPose& pose, double focal_px, int width, int height,
-                         double x, double y) {
-  const HorizonLookup lookup(horizon);
-  Column c{x, y, 1.0};
-  const Pose4 p = Pose4::From(pose, focal_px);
-  Scorer scorer(lookup, width / 2.0, height / 2.0, 1.0);
-  std::vector<Column> one{c};
+double HorizonDistancePx(const HorizonProfile& horizon, const CameraPose& pose, const CameraIntrinsics& k, double x,
+                         double y) {
+  const HorizonLookup lookup(horizon, DemErrorModel{});
+  const Scorer scorer(lookup, DemErrorModel{}, 1.0, k.height, 0.25);
+  const ImageFrame frame(Skyline{k.width, k.height, {}, {}}, k);
+  const auto uv = frame.Offset(x, y);
+  if (!uv) return NAN;
+  std::vector<Column> one(1);
+  one[0].u = uv->x();
+  one[0].v = uv->y();
+  const Pose4 p = Pose4::From(pose, k.focal_px);
   scorer.Reweight(p, one);
-  return scorer.Residual(CamFromEnu(pose), focal_px, one[0]);
+  return scorer.Residual(CamFromEnu(pose), p, one[0]);
 }
 
 std::vector<double> ProjectedHorizonRows(const HorizonProfile& horizon, const CameraPose& pose,
@@ -568,13 +395,13 @@ Registration Register(const Skyline& skyline, const HorizonProfile& horizon, con
   if (skyline.width < 1 || static_cast<int>(skyline.y.size()) != skyline.width)
     throw InvalidArgument("Register: skyline has no columns or y.size() != width");
   if (horizon.size() < 8) throw InvalidArgument("Register: horizon profile has fewer than 8 bins");
-  const int width = skyline.width, height = skyline.height;
-  const double cx = width / 2.0, cy = height / 2.0;
+  const int width = skyline.width;
   const double px_scale = ToleranceScale(width);
   const double tau = options.inlier_px * px_scale;
   Registration out;
+  const ImageFrame frame(skyline, options.known_intrinsics);
 
-  std::vector<Column> all = VisibleColumns(skyline);
+  std::vector<Column> all = VisibleColumns(skyline, frame);
   const double visible = static_cast<double>(all.size()) / width;
   if (visible < options.min_visible_fraction) {
     out.message = "too little skyline visible";
@@ -602,6 +429,9 @@ Registration Register(const Skyline& skyline, const HorizonProfile& horizon, con
   std::sort(img.begin(), img.end(), [](const Extremum& a, const Extremum& b) { return a.prominence > b.prominence; });
   if (static_cast<int>(img.size()) > options.image_extrema) img.resize(options.image_extrema);
   std::sort(img.begin(), img.end(), [](const Extremum& a, const Extremum& b) { return a.position < b.position; });
+  // Their points in the fitting's coordinates.
+  std::vector<std::optional<Eigen::Vector2d>> img_uv;
+  for (const Extremum& e : img) img_uv.push_back(frame.Offset(e.position + 0.5, -e.value));
   ExtremaOptions ho;
   ho.min_prominence = options.min_horizon_prominence_deg;
   ho.max_count = options.horizon_extrema;
@@ -613,11 +443,13 @@ Registration Register(const Skyline& skyline, const HorizonProfile& horizon, con
     return out;
   }
 
-  const HorizonLookup lookup(horizon);
-  const Scorer scorer(lookup, cx, cy, tau);
+  const HorizonLookup lookup(horizon, options.dem_error);
+  const Scorer scorer(lookup, options.dem_error, SigmaPx(options, width), skyline.height, options.outlier_share);
   const std::vector<Column> coarse = Subsample(all, options.coarse_columns);
-  const double fmin = 0.5 * width / std::tan(DegToRad(options.max_hfov_deg) / 2.0);
-  const double fmax = 0.5 * width / std::tan(DegToRad(options.min_hfov_deg) / 2.0);
+  // Focal lengths searched: the opening-angle range, or the known lens' with
+  // room for the extrema's position errors.
+  const double fmin = frame.known() ? frame.KnownFocalPx() / 1.03 : FocalFromHfovPx(options.max_hfov_deg, width);
+  const double fmax = frame.known() ? frame.KnownFocalPx() * 1.03 : FocalFromHfovPx(options.min_hfov_deg, width);
   const double step = horizon.azimuth_step_deg;
   auto dem_point = [&](const Extremum& e) { return HorizonPoint{e.position * step, e.value}; };
   std::vector<Eigen::Vector3d> dem_dirs;
@@ -639,7 +471,7 @@ Registration Register(const Skyline& skyline, const HorizonProfile& horizon, con
   const double min_sep = width / 20.0;
   for (size_t a = 0; a < img.size(); ++a)
     for (size_t b = a + 1; b < img.size(); ++b)
-      if (img[b].position - img[a].position >= min_sep) pairs.push_back({a, b});
+      if (img[b].position - img[a].position >= min_sep && img_uv[a] && img_uv[b]) pairs.push_back({a, b});
   struct Scored {
     std::vector<Candidate> candidates;
     int hypotheses = 0;
@@ -649,19 +481,20 @@ Registration Register(const Skyline& skyline, const HorizonProfile& horizon, con
     Scored& result = parts[t];
     std::vector<Candidate>& scored = result.candidates;
     const Extremum &ia = img[pairs[k].a], &ib = img[pairs[k].b];
-    const ImagePoint p1{ia.position + 0.5, -ia.value}, p2{ib.position + 0.5, -ib.value};
+    const ImagePoint p1{img_uv[pairs[k].a]->x(), img_uv[pairs[k].a]->y()};
+    const ImagePoint p2{img_uv[pairs[k].b]->x(), img_uv[pairs[k].b]->y()};
     // The cosines of the angle between the two pixel rays over the focal
     // range: a DEM pair whose angle falls outside cannot be this pair.
-    const std::pair<double, double> cos_range = RayCosineRange(p1, p2, cx, cy, fmin, fmax);
+    const std::pair<double, double> cos_range = RayCosineRange(p1, p2, fmin, fmax);
     for (const Extremum& da : dem) {
       if (da.is_max != ia.is_max) continue;
       for (const Extremum& db : dem) {
         if (db.is_max != ib.is_max || &da == &db) continue;
         const double sep = WrapAzimuthDeg((db.position - da.position) * step);
-        if (sep <= 0.0 || sep > options.max_hfov_deg) continue;
+        if (sep <= 0.0 || sep > RadToDeg(2.0 * std::atan(0.5 * width / fmin)) + 1.0) continue;
         const double cos_dem = DirectionOf(da).dot(DirectionOf(db));
         if (cos_dem < cos_range.first || cos_dem > cos_range.second) continue;
-        for (const PoseHypothesis& hyp : TwoPointPoses(p1, p2, dem_point(da), dem_point(db), cx, cy, fmin, fmax)) {
+        for (const PoseHypothesis& hyp : TwoPointPoses(p1, p2, dem_point(da), dem_point(db), 0.0, 0.0, fmin, fmax)) {
           const PoseHypothesis* h = &hyp;
           // An image extremum cannot be more prominent than its DEM match
           // (it is seen through a window of the horizon).
@@ -671,7 +504,7 @@ Registration Register(const Skyline& skyline, const HorizonProfile& horizon, con
             continue;
           if (!WithinPrior(options, h->pose)) continue;
           ++result.hypotheses;
-          const Pose4 pose = Pose4::From(h->pose, h->focal_px);
+          const Pose4 pose = Pose4::From(h->pose, frame.known() ? frame.KnownFocalPx() : h->focal_px);
           const double bound = scored.size() >= 64 ? scored[63].cost : INFINITY;
           const double cost = scorer.Cost(pose, coarse, bound);
           if (!std::isfinite(cost)) continue;
@@ -696,97 +529,171 @@ Registration Register(const Skyline& skyline, const HorizonProfile& horizon, con
     return out;
   }
 
-  // Refine the best distinct hypotheses.
-  std::vector<Candidate> distinct;
-  for (const Candidate& c : scored) {
-    if (static_cast<int>(distinct.size()) >= options.candidates) break;
-    if (std::none_of(distinct.begin(), distinct.end(),
-                     [&](const Candidate& d) { return SamePose(d.pose, c.pose, width); }))
-      distinct.push_back(c);
-  }
-  // Stage 1: the paper's linear corrections (eq. 11-14) on a few columns.
+  // Refine the best distinct hypotheses. Stage 1: the paper's linear
+  // corrections (eq. 11-14) on a few columns; stage 2: robust least squares,
+  // ranked on all columns. The ambiguity needs another solution to compare
+  // with: when every refined candidate converges onto the best one, more
+  // distinct hypotheses are refined, up to kMaxRefined.
+  constexpr size_t kMaxRefined = 16;
   std::vector<Column> quick = Subsample(all, options.quick_columns);
-  std::vector<PaperCorrection> corrections(distinct.size(), PaperCorrection{});
-  ParallelFor(distinct.size(), options.num_threads, [&](size_t i, int) {
-    Candidate& c = distinct[i];
-    const PaperCorrection pc = CorrectLinear(scorer, quick, c.pose, width, tau, horizon);
-    const double corrected = scorer.Cost(pc.pose, quick);
-    c.cost = scorer.Cost(c.pose, quick);
-    if (corrected < c.cost) c = {pc.pose, corrected};
-    corrections[i] = pc;
-  });
-  std::vector<size_t> by_cost(distinct.size());
-  std::iota(by_cost.begin(), by_cost.end(), 0);
-  std::sort(by_cost.begin(), by_cost.end(), [&](size_t x, size_t y) { return distinct[x].cost < distinct[y].cost; });
-  // Stage 2: robust least squares for the best few, ranked on all columns.
-  const size_t n_refine = std::min(by_cost.size(), static_cast<size_t>(options.refined_candidates));
-  std::vector<std::optional<Candidate>> slots(n_refine);
-  ParallelFor(n_refine, options.num_threads, [&](size_t k, int) {
-    const Candidate& c = distinct[by_cost[k]];
-    std::vector<Column> cols = quick;  // weighted for this candidate's pose
-    scorer.Reweight(c.pose, cols);
-    const Refined r = RefineLeastSquares(scorer, cols, c.pose, tau, 2, false, 1.0);
-    Candidate rc{r.pose, 0.0};
-    const CameraPose cp = rc.pose.ToPose();
-    if (!WithinPrior(options, cp)) return;
-    const double hfov = RadToDeg(2.0 * std::atan(0.5 * width / rc.pose.f));
-    if (hfov < options.min_hfov_deg * 0.95 || hfov > options.max_hfov_deg * 1.05) return;
-    rc.cost = scorer.Cost(rc.pose, all) + 0.02 * PriorPenalty(options.prior, cp) * scorer.tau2() / 9.0;
-    rc.inliers = scorer.InlierFraction(rc.pose, all);
-    slots[k] = rc;
-  });
-  std::vector<Candidate> refined;
-  std::vector<PaperCorrection> refined_corrections;
-  for (size_t k = 0; k < n_refine; ++k)
-    if (slots[k]) {
-      refined.push_back(*slots[k]);
-      refined_corrections.push_back(corrections[by_cost[k]]);
+  std::vector<Candidate> pool;                 // distinct hypotheses, after stage 1, in the order refined
+  std::vector<PaperCorrection> pool_correction;
+  size_t next_scored = 0;                      // next coarse hypothesis to consider
+  auto extend_pool = [&](size_t count) {
+    std::vector<Candidate> fresh;
+    while (fresh.size() < count && next_scored < scored.size()) {
+      const Candidate& c = scored[next_scored++];
+      auto same = [&](const Candidate& d) { return SamePose(d.pose, c.pose, width); };
+      if (std::none_of(pool.begin(), pool.end(), same) && std::none_of(fresh.begin(), fresh.end(), same))
+        fresh.push_back(c);
     }
-  corrections = std::move(refined_corrections);
+    std::vector<PaperCorrection> corr(fresh.size());
+    ParallelFor(fresh.size(), options.num_threads, [&](size_t i, int) {
+      Candidate& c = fresh[i];
+      PaperCorrection pc = CorrectLinear(scorer, quick, c.pose, width, tau);
+      if (frame.known()) pc.pose.f = c.pose.f;
+      const double corrected = scorer.Cost(pc.pose, quick);
+      c.cost = scorer.Cost(c.pose, quick);
+      if (corrected < c.cost) c = {pc.pose, corrected};
+      corr[i] = pc;
+    });
+    std::vector<size_t> by_cost(fresh.size());
+    std::iota(by_cost.begin(), by_cost.end(), 0);
+    std::sort(by_cost.begin(), by_cost.end(), [&](size_t x, size_t y) { return fresh[x].cost < fresh[y].cost; });
+    for (size_t k : by_cost) pool.push_back(fresh[k]), pool_correction.push_back(corr[k]);
+  };
+  std::vector<Candidate> refined;
+  std::vector<PaperCorrection> corrections;
+  auto refine_pool = [&](size_t from, size_t to) {
+    std::vector<std::optional<Candidate>> slots(to - from);
+    ParallelFor(to - from, options.num_threads, [&](size_t k, int) {
+      const Candidate& c = pool[from + k];
+      std::vector<Column> cols = quick;  // weighted for this candidate's pose
+      scorer.Reweight(c.pose, cols);
+      LeastSquaresOptions lso;
+      lso.rounds = 2;
+      lso.anneal = {6.0, 3.0};  // candidates a few pixels off converge; neighbours of one solution merge
+      lso.fix_focal = frame.known();
+      const Refined r = RefineLeastSquares(scorer, cols, c.pose, lso);
+      Candidate rc{r.pose, 0.0};
+      const CameraPose cp = rc.pose.ToPose();
+      if (!WithinPrior(options, cp)) return;
+      const double hfov = HfovFromFocalDeg(rc.pose.f, width);
+      if (!frame.known() && (hfov < options.min_hfov_deg * 0.95 || hfov > options.max_hfov_deg * 1.05)) return;
+      rc.cost = scorer.Cost(rc.pose, all) + 0.02 * PriorPenalty(options.prior, cp);
+      rc.inliers = scorer.InlierShare(rc.pose, all);
+      rc.misfit = scorer.Misfit(rc.pose, all);
+      slots[k] = rc;
+    });
+    for (size_t k = 0; k < slots.size(); ++k)
+      if (slots[k]) refined.push_back(*slots[k]), corrections.push_back(pool_correction[from + k]);
+  };
+  // The best refined candidate and the best alternative that is another
+  // solution: one whose predicted skyline differs from the best's (a
+  // half-converged copy of the best, a few tenths of a degree and percent
+  // of focal length away, predicts the same skyline and is no alternative).
+  // Compared on the misfit alone.
+  std::vector<size_t> order;
+  const Candidate* second_candidate = nullptr;
+  auto rank = [&] {
+    order.resize(refined.size());
+    std::iota(order.begin(), order.end(), 0);
+    std::sort(order.begin(), order.end(), [&](size_t x, size_t y) { return refined[x].cost < refined[y].cost; });
+    second_candidate = nullptr;
+    if (refined.empty()) return;
+    const Candidate& b = refined[order[0]];
+    for (size_t i = 1; i < order.size(); ++i) {
+      const Candidate& c = refined[order[i]];
+      if (SamePose(c.pose, b.pose, width) ||
+          (NearPose(c.pose, b.pose, width) && scorer.Agreement(c.pose, b.pose, quick, tau) >= 0.5))
+        continue;
+      if (!second_candidate || c.misfit < second_candidate->misfit) second_candidate = &c;
+    }
+  };
+  extend_pool(options.candidates);
+  size_t refined_upto = std::min(pool.size(), static_cast<size_t>(options.refined_candidates));
+  refine_pool(0, refined_upto);
+  rank();
+  while (!second_candidate && refined_upto < kMaxRefined) {
+    if (refined_upto >= pool.size()) extend_pool(options.refined_candidates);
+    if (refined_upto >= pool.size()) break;  // no more distinct hypotheses
+    const size_t to = std::min({pool.size(), refined_upto + static_cast<size_t>(options.refined_candidates), kMaxRefined});
+    refine_pool(refined_upto, to);
+    refined_upto = to;
+    rank();
+  }
   if (refined.empty()) {
     out.message = "no refined hypothesis within the opening-angle range and priors";
     return out;
   }
-  std::vector<size_t> order(refined.size());
-  std::iota(order.begin(), order.end(), 0);
-  std::sort(order.begin(), order.end(), [&](size_t x, size_t y) { return refined[x].cost < refined[y].cost; });
+  for (size_t i : order)
+    out.candidates.push_back({refined[i].pose.ToPose(), refined[i].pose.f, refined[i].cost, refined[i].inliers});
   const Candidate& best = refined[order[0]];
+  // The DEM's flattening as the best pose shows it; the best and its
+  // alternative are then judged alike under it (a view rendered from the
+  // DEM itself leaves a wrong pose no slack the data did not ask for).
+  const double scale = EstimateFlatteningScale(scorer, best.pose, quick);
+  const DemErrorModel adapted = ScaledModel(options.dem_error, scale);
+  const HorizonLookup adapted_lookup(horizon, adapted);
+  const Scorer adapted_scorer(adapted_lookup, adapted, SigmaPx(options, width), skyline.height, options.outlier_share);
+  out.dem.flattening_scale = scale;
+  const double best_misfit = adapted_scorer.Misfit(best.pose, all);
   double second = INFINITY;
-  for (size_t i = 1; i < order.size(); ++i)
-    if (!SamePose(refined[order[i]].pose, best.pose, width)) {
-      second = refined[order[i]].cost;
-      out.second_inlier_fraction = refined[order[i]].inliers;
-      break;
-    }
-
-  out.ambiguity_ratio = second / std::max(best.cost, 1e-9 * scorer.tau2());
+  if (second_candidate) {
+    second = adapted_scorer.Misfit(second_candidate->pose, all);
+    out.second_cost = adapted_scorer.Cost(second_candidate->pose, all);
+    out.second_inlier_fraction = adapted_scorer.InlierShare(second_candidate->pose, all);
+  }
+  out.ambiguity_ratio = second / std::max(best_misfit, 1e-9);
+  out.second_misfit = second;
   out.ex_px = corrections[order[0]].ex_px;
   out.ey_px = corrections[order[0]].ey_px;
-  FinishRegistration(scorer, all, best.pose, width, step, tau, px_scale, false, options, out);
+  FinishRegistration(adapted_scorer, frame, all, best.pose, width, step, px_scale, false, options, {}, out);
   return out;
 }
 
 Registration RefinePose(const Skyline& skyline, const HorizonProfile& horizon, const CameraPose& start, double focal_px,
-                        bool fix_focal, const RegistrationOptions& options) {
+                        bool fix_focal, const RegistrationOptions& options, double start_noise_px) {
   options.Check();
   if (skyline.width < 1 || static_cast<int>(skyline.y.size()) != skyline.width)
     throw InvalidArgument("RefinePose: skyline has no columns or y.size() != width");
   if (horizon.size() < 8) throw InvalidArgument("RefinePose: horizon profile has fewer than 8 bins");
   if (!(focal_px > 0.0)) throw InvalidArgument("RefinePose: focal_px must be > 0");
+  if (!(start_noise_px > 0.0)) throw InvalidArgument("RefinePose: start_noise_px must be > 0");
   const int width = skyline.width;
   const double px_scale = ToleranceScale(width);
-  const double tau = options.inlier_px * px_scale;
   Registration out;
-  std::vector<Column> all = VisibleColumns(skyline);
+  const ImageFrame frame(skyline, options.known_intrinsics);
+  std::vector<Column> all = VisibleColumns(skyline, frame);
   if (static_cast<double>(all.size()) / width < options.min_visible_fraction || all.size() < 8) {
     out.message = "too little skyline visible";
     return out;
   }
-  const HorizonLookup lookup(horizon);
-  const Scorer scorer(lookup, width / 2.0, skyline.height / 2.0, tau);
+  const HorizonLookup lookup(horizon, options.dem_error);
+  const double sigma = SigmaPx(options, width);
+  const Scorer scorer(lookup, options.dem_error, sigma, skyline.height, options.outlier_share);
+  // Graduated noise: from start_noise_px (per 1000 px) down to sigma in
+  // halvings, so that a start tens of pixels off still finds its basin.
+  std::vector<double> anneal;
+  for (double s = start_noise_px * px_scale / sigma; s > 1.5; s /= 2.0) anneal.push_back(s);
   out.ambiguity_ratio = INFINITY;  // not searched: the start pose is given
-  FinishRegistration(scorer, all, Pose4::From(start, focal_px), width, horizon.azimuth_step_deg, tau, px_scale,
-                     fix_focal, options, out);
+  const double f = frame.known() ? frame.KnownFocalPx() : focal_px;
+  // A first fit under the prior DEM error model, then the flattening this
+  // image shows there, then the final fit and decision under it.
+  std::vector<Column> cols = Subsample(all, options.quick_columns);
+  scorer.Reweight(Pose4::From(start, f), cols);
+  LeastSquaresOptions lso;
+  lso.rounds = 2;
+  lso.anneal = anneal;
+  lso.fix_focal = fix_focal || frame.known();
+  const Pose4 first = RefineLeastSquares(scorer, cols, Pose4::From(start, f), lso).pose;
+  const double scale = EstimateFlatteningScale(scorer, first, cols);
+  const DemErrorModel adapted = ScaledModel(options.dem_error, scale);
+  const HorizonLookup adapted_lookup(horizon, adapted);
+  const Scorer adapted_scorer(adapted_lookup, adapted, sigma, skyline.height, options.outlier_share);
+  out.dem.flattening_scale = scale;
+  FinishRegistration(adapted_scorer, frame, all, first, width, horizon.azimuth_step_deg, px_scale, fix_focal, options, {},
+                     out);
   return out;
 }
 

@@ -26,9 +26,37 @@ struct SensorPrior {
   void Check() const;
 };
 
+// How far the DEM horizon can be from the true one at each azimuth bin, and
+// how the observer's position moves it (issue: real DEMs are coarse). The
+// model is one-sided: a grid of posts cuts sharp peaks and ridges, so the
+// true horizon lies *above* the DEM's by up to
+//   flattening(bin) = hypot(flattening_spacings * spacing / d, flattening_floor)
+// (radians; spacing the DEM post spacing there, d the distance), rarely
+// below it. The observer's position and eye height add a symmetric
+// uncertainty hypot(position_sigma_m, height_sigma_m) / d, largest for near
+// terrain. Used in the residual weights, the inlier gate and the no-match
+// decision (match/fit_model.h, ColumnLoss).
+struct DemErrorModel {
+  double flattening_spacings = 0.15;  // mean height deficit of the horizon terrain, in post spacings, >= 0
+  double flattening_floor_deg = 0.03; // mean deficit however fine the DEM (snow, sub-grid relief), degrees, >= 0
+  double position_sigma_m = 1.0;       // horizontal position of the observer, 1 sigma, metres, >= 0
+  double height_sigma_m = 1.0;         // eye height, 1 sigma, metres, >= 0
+  void Check() const;                  // Throws InvalidArgument naming the field.
+};
+
 struct RegistrationOptions {
   double min_hfov_deg = 10.0;  // Horizontal opening angles searched, degrees, 0 < min <= max < 170.
   double max_hfov_deg = 120.0;
+  // Known intrinsics (focal length, principal point, distortion; any image
+  // size, rescaled to the skyline's): used exactly, the focal length is not
+  // fitted and min/max_hfov_deg are ignored.
+  std::optional<CameraIntrinsics> known_intrinsics;
+  // Without known intrinsics: fit radial distortion k1 (about the image
+  // centre) in the final refinement when the skyline spans at least
+  // `distortion_min_span` of the image width on both sides of the centre.
+  bool estimate_distortion = true;
+  double distortion_min_span = 0.6;  // share of the width, in [0, 1]
+  double distortion_prior_sigma = 0.15;  // k1's prior 1-sigma about 0 (keeps short skylines sane), > 0
   double max_abs_roll_deg = 30.0;        // Hypotheses with more roll are dropped (without an inclinometer), degrees.
   int image_extrema = 7;                 // Most prominent image peaks and dips paired into hypotheses, >= 2.
   int horizon_extrema = 70;              // Most prominent DEM peaks and dips of each kind, >= 2.
@@ -39,31 +67,79 @@ struct RegistrationOptions {
   int refine_columns = 300;                  // Skyline columns in the final least squares, >= 8.
   int candidates = 8;                        // Distinct best hypotheses given the paper's linear corrections, >= 2.
   int refined_candidates = 4;                // ... of which the best this many get the least squares, >= 2.
-  double inlier_px = 3.0;                    // A column fits when within this many pixels (per 1000 px of image width).
+  // Pixel noise of the skyline (3 sigma), pixels per 1000 px of image width
+  // (ToleranceScale): the inlier gate is 3 sigma of each column's noise,
+  // widened by the DEM error model.
+  double inlier_px = 3.0;
+  double outlier_share = 0.25;  // prior share of misread columns in the robust fit, in (0, 1)
+  DemErrorModel dem_error;
   int num_threads = 2;  // Threads scoring and refining hypotheses, >= 1 (same result for any count).
   // The no-match decision (a wrong pose reported as registered is the worst outcome):
-  double min_visible_fraction = 0.15;  // of the image columns with a skyline value
-  double min_inlier_fraction = 0.80;   // of the visible columns within inlier_px at the refined pose
-  double max_rms_px = 1.5;             // RMS of the inlier columns (per 1000 px of width)
-  double min_ambiguity_ratio = 1.75;   // second-best distinct pose's cost over the best's
+  double min_visible_fraction = 0.15;      // of the image columns with a skyline value
+  double min_informative_fraction = 0.3;   // of the width: columns whose tolerance lets them inform (near terrain
+                                           // and a coarse DEM count little, Registration::informative_columns)
+  double min_inlier_fraction = 0.65;       // of the informative columns inside the gate at the refined pose
+  double max_rms_px = 1.4;                 // RMS of the inliers' residuals beyond the DEM model (per 1000 px of width)
+  double min_ambiguity_ratio = 1.4;        // the best other solution's misfit over the best's
+  // Log-likelihood (nats) by which the best pose beats the best other
+  // solution, over the independent DEM samples behind its inliers
+  // (Registration::evidence_nats): many columns on a few DEM cells (near
+  // terrain, a zoomed-in view) are weak evidence however well they fit.
+  double min_evidence_nats = 40.0;
   SensorPrior prior;
   void Check() const;  // Throws InvalidArgument naming the field.
+};
+
+// How much the DEM limited the fit (register JSON "dem"): at the final pose,
+// over the inlier columns.
+struct DemLimits {
+  double post_spacing_m = NAN;          // median DEM post spacing at the horizon points seen
+  double horizon_distance_m = NAN;      // median distance of the horizon points seen
+  double expected_flattening_px = NAN;  // median of the model's one-sided tolerance
+  double skyline_above_dem_px = NAN;    // median of how far the skyline stands above the DEM horizon
+  double dem_explained_fraction = NAN;  // share of the inliers that fit only through the DEM's flattening
+  double flattening_scale = NAN;        // the DEM error model's flattening as this image shows it (0.1-2)
+};
+
+// A refined candidate pose of the search (the best first).
+struct PoseCandidate {
+  CameraPose pose;
+  double focal_px = 0.0;
+  double cost = 0.0;             // mean truncated cost over the visible columns (lower is better)
+  double inlier_fraction = 0.0;  // share of the visible columns inside the gate
 };
 
 struct Registration {
   bool registered = false;
   std::string message;  // why not registered, or a short summary
-  CameraPose pose;      // meaningful when a best pose exists (also for no_match, for diagnosis)
+  CameraPose pose;      // optical axis; meaningful when a best pose exists (also for no_match, for diagnosis)
+  CameraPose center_ray;  // the ray through the image centre (= pose for a centred pinhole)
   double focal_px = 0.0;
   double hfov_deg = 0.0;
-  double rms_px = NAN;  // RMS distance of the inlier columns to the projected horizon (near field down-weighted)
-  double inlier_fraction = 0.0;         // visible columns within inlier_px, near-field columns (< ~400 m) down-weighted
+  // The camera as fitted (known intrinsics, or a centred pinhole with the
+  // fitted focal length and k1), for the skyline's image size.
+  CameraIntrinsics intrinsics;
+  bool distortion_estimated = false;  // k1 was fitted (intrinsics.distortion.k()[0])
+  double k1_sigma = NAN;
+  double rms_px = NAN;  // RMS residual of the inlier columns (raw, before the DEM model)
+  double model_rms_px = NAN;  // the inliers' residuals against what the noise and DEM model expect, as a pixel RMS
+  double inlier_fraction = 0.0;         // share of the visible columns inside the gate (near columns count less)
   double ex_px = NAN, ey_px = NAN;      // paper eq. (13), (14): RMS horizontal and vertical differences
   double ambiguity_ratio = 0.0;         // cost of the best distinct alternative over the best's (inf if none)
   double second_inlier_fraction = 0.0;  // share of the columns that alternative fits
+  double misfit = NAN, second_misfit = NAN;  // mean truncated chi^2 of the best and that alternative
+  double second_cost = NAN;                  // that alternative's mean cost (chi^2 and tolerance width)
+  double informative_columns = 0.0;  // columns whose tolerance lets them inform (near terrain counts little)
+  double independent_inliers = 0.0;  // independent DEM samples behind the inliers (FitStats)
+  // independent_inliers * (second_cost - cost) / 2 (second_cost = 9, all
+  // outliers, when nothing else was searched): nats in favour of the pose.
+  double evidence_nats = 0.0;
   double azimuth_sigma_deg = NAN, pitch_sigma_deg = NAN, roll_sigma_deg = NAN, focal_sigma_px = NAN;
+  DemLimits dem;
+  std::vector<PoseCandidate> candidates;  // the refined candidates of the search, best first (empty for RefinePose)
   int hypotheses = 0;  // hypotheses scored after the constraints
   int image_extrema = 0, horizon_extrema = 0;
+  // intrinsics for an image of this size (the registered one or a resized copy).
   CameraIntrinsics Intrinsics(int width, int height) const;
 };
 
@@ -83,19 +159,23 @@ double ToleranceScale(int width);
 // Thread-safe.
 Registration Register(const Skyline& skyline, const HorizonProfile& horizon, const RegistrationOptions& options);
 
-// Tracking: refines a pose known approximately (the previous frame's, within
-// a few pixels) against the skyline, without any hypothesis search: the same
-// robust least squares, statistics and acceptance tests as Register (no
-// ambiguity test: nothing else was searched). `fix_focal` keeps focal_px.
-// Throws InvalidArgument for bad options or inputs. Thread-safe.
+// Refines a pose known approximately (the previous frame's, a fixed
+// camera's, a pose a few degrees off) against the skyline, without any
+// hypothesis search: a graduated robust least squares (the noise scale
+// shrinks from `start_noise_px` per 1000 px of width to the options' over
+// four stages, so a start tens of pixels off converges), then the same
+// statistics and acceptance tests as Register (no ambiguity test: nothing
+// else was searched). `fix_focal` keeps focal_px (known intrinsics keep
+// theirs anyway). Throws InvalidArgument for bad options or inputs.
+// Thread-safe.
 Registration RefinePose(const Skyline& skyline, const HorizonProfile& horizon, const CameraPose& start, double focal_px,
-                        bool fix_focal, const RegistrationOptions& options);
+                        bool fix_focal, const RegistrationOptions& options, double start_noise_px = 1.0);
 
 // Signed pixel distance from the image point (x, y) to the horizon projected
-// with `pose` and focal `focal_px` (principal point at the centre of a
-// width x height image), measured across the projected silhouette: positive
-// when the point lies below it (in the terrain). For diagnostics and tests.
-double HorizonDistancePx(const HorizonProfile& horizon, const CameraPose& pose, double focal_px, int width, int height,
+// with `pose` and `intrinsics`, measured across the projected silhouette:
+// positive when the point lies below it (in the terrain). For diagnostics
+// and tests.
+double HorizonDistancePx(const HorizonProfile& horizon, const CameraPose& pose, const CameraIntrinsics& intrinsics,
                          double x, double y);
 
 // Per image column, the y where the projected DEM horizon crosses the

@@ -15,15 +15,10 @@
 namespace horizonreg {
 
 void LandmarkOptions::Check() const {
-  auto fail = [](const char* field, double v, const char* rule) {
-    std::ostringstream m;
-    m << "LandmarkOptions::" << field << " = " << v << "; violated: " << rule;
-    throw InvalidArgument(m.str());
-  };
-  if (!(snap_radius_m >= 0.0 && snap_radius_m < 50'000.0)) fail("snap_radius_m", snap_radius_m, "0 <= r < 50 km");
+  if (!(snap_radius_m >= 0.0 && snap_radius_m < 50'000.0)) ThrowField("LandmarkOptions::snap_radius_m", snap_radius_m, "0 <= r < 50 km");
   if (!(visibility_margin_deg >= 0.0 && visibility_margin_deg < 10.0))
-    fail("visibility_margin_deg", visibility_margin_deg, "0 <= margin < 10");
-  if (!(refraction >= -1.0 && refraction <= 1.0)) fail("refraction", refraction, "-1 <= k <= 1");
+    ThrowField("LandmarkOptions::visibility_margin_deg", visibility_margin_deg, "0 <= margin < 10");
+  if (!(refraction >= -1.0 && refraction <= 1.0)) ThrowField("LandmarkOptions::refraction", refraction, "-1 <= k <= 1");
 }
 
 namespace {

@@ -49,8 +49,8 @@ TEST(DrawOverlay, LandmarkLandsOnItsPixel) {
   const double f = k.focal_px;
   const double x0 = f * std::tan(DegToRad(4.0)), y0 = f * std::tan(DegToRad(1.0));  // approximately, level camera
   const double rr = DegToRad(3.0);
-  EXPECT_NEAR(r.labels[0].x - k.cx, x0 * std::cos(rr) + y0 * std::sin(rr), 4.0);
-  EXPECT_NEAR(r.labels[0].y - k.cy, y0 * std::cos(rr) - x0 * std::sin(rr), 4.0);
+  EXPECT_NEAR(r.labels[0].x - k.cx_px, x0 * std::cos(rr) + y0 * std::sin(rr), 4.0);
+  EXPECT_NEAR(r.labels[0].y - k.cy_px, y0 * std::cos(rr) - x0 * std::sin(rr), 4.0);
   EXPECT_NE(r.labels[0].text.find("Test Peak"), std::string::npos);
   EXPECT_NE(r.labels[0].text.find("12.0 km"), std::string::npos);
 }

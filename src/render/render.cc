@@ -15,17 +15,12 @@
 namespace horizonreg {
 
 void RenderOptions::Check() const {
-  auto fail = [](const char* field, double v, const char* rule) {
-    std::ostringstream m;
-    m << "RenderOptions::" << field << " = " << v << "; violated: " << rule;
-    throw InvalidArgument(m.str());
-  };
-  if (!(max_distance_m > 0.0 && std::isfinite(max_distance_m))) fail("max_distance_m", max_distance_m, "0 < d < inf");
-  if (!(refraction >= -1.0 && refraction <= 1.0)) fail("refraction", refraction, "-1 <= k <= 1");
-  if (!std::isfinite(sun_azimuth_deg)) fail("sun_azimuth_deg", sun_azimuth_deg, "finite");
+  if (!(max_distance_m > 0.0 && std::isfinite(max_distance_m))) ThrowField("RenderOptions::max_distance_m", max_distance_m, "0 < d < inf");
+  if (!(refraction >= -1.0 && refraction <= 1.0)) ThrowField("RenderOptions::refraction", refraction, "-1 <= k <= 1");
+  if (!std::isfinite(sun_azimuth_deg)) ThrowField("RenderOptions::sun_azimuth_deg", sun_azimuth_deg, "finite");
   if (!(sun_elevation_deg > 0.0 && sun_elevation_deg <= 90.0))
-    fail("sun_elevation_deg", sun_elevation_deg, "0 < elevation <= 90");
-  if (!(haze_distance_m > 0.0)) fail("haze_distance_m", haze_distance_m, "haze_distance_m > 0");
+    ThrowField("RenderOptions::sun_elevation_deg", sun_elevation_deg, "0 < elevation <= 90");
+  if (!(haze_distance_m > 0.0)) ThrowField("RenderOptions::haze_distance_m", haze_distance_m, "haze_distance_m > 0");
 }
 
 namespace {

@@ -9,6 +9,7 @@ namespace {
 constexpr float kTopStepShare = 0.4f;  // refinement: the topmost step at least this share of the strongest wins
 constexpr float kTopStepMin = 5.0f;    // ... and at least this delta E (noise in the sky stays below)
 constexpr int kStepColumns = 2;        // refinement: steps read from the column averaged with 2 on each side
+constexpr float kFaintContrast = 8.0f;  // delta E below which a boundary is read from the averaged columns
 constexpr float kTreeGreen = 7.0f;     // -a* above which a dark boundary is a tree (dark shaded terrain is greyer)
 
 }  // namespace
@@ -64,32 +65,46 @@ ColumnFit RefineColumn(RefineStrips& strips, int x, int h, int centre, int windo
   }
   ColumnFit fit;
   if (best_step < 0) return fit;
-  float sky[3] = {0, 0, 0}, ground[3] = {0, 0, 0};
-  for (int k = 2; k <= 4; ++k) {
-    const int above = best - 1 - k - first, below = best + k - first;
-    sky[0] += lab.l[above], sky[1] += lab.a[above], sky[2] += lab.b[above];
-    ground[0] += lab.l[below], ground[1] += lab.a[below], ground[2] += lab.b[below];
-  }
-  for (int k = 0; k < 3; ++k) sky[k] *= 1.0f / 3, ground[k] *= 1.0f / 3;
-  const float d[3] = {sky[0] - ground[0], sky[1] - ground[1], sky[2] - ground[2]};
-  const float dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-  fit.contrast = std::sqrt(dd);
-  fit.spread = best_step > 0 ? fit.contrast / best_step : 0;
-  fit.ground_l = ground[0];
-  fit.ground_green = -ground[1];
-  if (dd < 1e-6f) return fit;
-  auto t = [&](int r) {  // 1 sky, 0 ground
-    const int i = r - first;
-    return ((lab.l[i] - ground[0]) * d[0] + (lab.a[i] - ground[1]) * d[1] + (lab.b[i] - ground[2]) * d[2]) / dd;
-  };
-  for (int r = best - 2; r <= best + 2; ++r) {
-    const float t0 = t(r - 1), t1 = t(r);
-    if (t0 >= 0.5f && t1 < 0.5f) {
-      fit.y = (r - 0.5) + (t0 - 0.5) / (t0 - t1);
-      return fit;
+  // The local sky and ground colours (3-row means 2-4 rows from the step)
+  // and the half-way crossing, read from the column itself (a tree's edge
+  // stays sharp) when the boundary is clear, from the column averaged with
+  // its neighbours when it is faint (haze: a few delta E, which the pixel
+  // noise of one column would scatter by several rows).
+  auto read = [&](const LabStrips& src, ColumnFit& f) {
+    float sky[3] = {0, 0, 0}, ground[3] = {0, 0, 0};
+    for (int k = 2; k <= 4; ++k) {
+      const int above = best - 1 - k - first, below = best + k - first;
+      sky[0] += src.l[above], sky[1] += src.a[above], sky[2] += src.b[above];
+      ground[0] += src.l[below], ground[1] += src.a[below], ground[2] += src.b[below];
     }
+    for (int k = 0; k < 3; ++k) sky[k] *= 1.0f / 3, ground[k] *= 1.0f / 3;
+    const float d[3] = {sky[0] - ground[0], sky[1] - ground[1], sky[2] - ground[2]};
+    const float dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+    f.contrast = std::sqrt(dd);
+    f.spread = best_step > 0 ? f.contrast / best_step : 0;
+    f.ground_l = ground[0];
+    f.sky_chroma = std::sqrt(sky[1] * sky[1] + sky[2] * sky[2]);
+    f.ground_green = -ground[1];
+    if (dd < 1e-6f) return;
+    auto t = [&](int r) {  // 1 sky, 0 ground
+      const int i = r - first;
+      return ((src.l[i] - ground[0]) * d[0] + (src.a[i] - ground[1]) * d[1] + (src.b[i] - ground[2]) * d[2]) / dd;
+    };
+    for (int r = best - 2; r <= best + 2; ++r) {
+      const float t0 = t(r - 1), t1 = t(r);
+      if (t0 >= 0.5f && t1 < 0.5f) {
+        f.y = (r - 0.5) + (t0 - 0.5) / (t0 - t1);
+        return;
+      }
+    }
+    f.y = best;
+  };
+  read(lab, fit);
+  if (fit.contrast < kFaintContrast) {
+    ColumnFit averaged;
+    read(wide, averaged);
+    fit = averaged;
   }
-  fit.y = best;
   return fit;
 }
 

@@ -10,6 +10,7 @@
 
 #include "skyline/lab.h"
 #include "skyline/refine.h"
+#include "skyline/sky_model.h"
 #include "util/angles.h"
 #include "util/errors.h"
 
@@ -22,6 +23,7 @@ using skyline_detail::GatherStrips;
 using skyline_detail::Quantile;
 using skyline_detail::RefineColumn;
 using skyline_detail::RefineStrips;
+using skyline_detail::SkyModel;
 
 constexpr int kHistBins = 16;             // per CIELAB axis
 constexpr float kColourWeight = 0.25f;    // DP cost per misclassified pixel (edges weigh 1 per delta E)
@@ -30,6 +32,13 @@ constexpr float kEdgeNoise = 4.0f;        // delta E of a step that is still noi
 constexpr float kEdgeCap = 12.0f;         // delta E above which a step counts as fully an edge
 constexpr float kSnowEdgeBoost = 4.0f;    // extra weight of a sharp step into white (snow) left above the boundary
 constexpr float kDeepBlueB = -25.0f;      // b* below which a pixel is saturated blue: sky, never terrain
+constexpr int kPersistentRows = 4;            // rows averaged on each side of a persistent step
+constexpr float kTopmostMinStep = 1.0f;       // delta E: a persistent step is clear from this ...
+constexpr float kTopmostNoiseFactor = 5.0f;   // ... or from this many times the sky's noise
+constexpr float kTopmostAboveWeight = 2.0f;   // cost per delta E of clear steps left above the first boundary
+constexpr float kSkyModelVeto = 3.0f;         // sky-model deviation (robust sigmas) from which a pixel is not sky ...
+constexpr float kSkyModelClean = 2.0f;        // sky-model deviation (robust sigmas) below which a pixel is clean sky
+constexpr float kSubtleDeltaE = 12.0f;        // ... up to this colour distance (beyond: the histograms decide)
 constexpr double kFogSpreadRows = 2.4;  // median contrast / largest one-row step above which a faint boundary is a fade
 
 inline int HistIndex(float l, float a, float b) {
@@ -116,10 +125,13 @@ HR_VECTOR_CLONES void SkyScoreFromTopBand(const LabPlanes& lab, cv::Mat& s) {
   }
 }
 
-// Pass 2: sky probability from colour histograms of the pixels above and
-// below a first boundary (class-balanced likelihood ratio).
-HR_VECTOR_CLONES void SkyScoreFromHistograms(const LabPlanes& lab, const std::vector<int>& boundary, cv::Mat& bins,
-                                             cv::Mat& s) {
+// Pass 2: sky probability from colour histograms of the pixels above
+// sky_end[c] and below ground_start[c] in each column c (class-balanced
+// likelihood ratio); of the rows between, only those marked in clean_sky
+// (one row per column, CV_8U) are learnt, as sky.
+HR_VECTOR_CLONES void SkyScoreFromHistograms(const LabPlanes& lab, const std::vector<int>& sky_end,
+                                             const std::vector<int>& ground_start, const cv::Mat& clean_sky,
+                                             cv::Mat& bins, cv::Mat& s) {
   const int w = lab.Rows(), h = lab.Cols();
   constexpr int kCells = kHistBins * kHistBins * kHistBins;
   std::vector<int> sky(kCells, 1), ground(kCells, 1);  // counts, from 1 each
@@ -131,10 +143,13 @@ HR_VECTOR_CLONES void SkyScoreFromHistograms(const LabPlanes& lab, const std::ve
     const float* b = lab.b.ptr<float>(c);
     int* bin = bins.ptr<int>(c);
     for (int r = 0; r < h; ++r) bin[r] = HistIndex(l[r], a[r], b[r]);
-    const int sky_end = std::clamp(boundary[c] - 2, 0, h), ground_start = std::clamp(boundary[c] + 3, 0, h);
-    for (int r = 0; r < sky_end; ++r) ++sky[bin[r]];
-    for (int r = ground_start; r < h; ++r) ++ground[bin[r]];
-    ns += sky_end, ng += h - ground_start;
+    const int se = std::clamp(sky_end[c], 0, h), gs = std::clamp(ground_start[c], 0, h);
+    const uint8_t* clean = clean_sky.ptr<uint8_t>(c);
+    for (int r = 0; r < se; ++r) ++sky[bin[r]];
+    for (int r = se; r < gs; ++r)  // the band between: its clean sky (blue between clouds), not its snow
+      if (clean[r]) ++sky[bin[r]], ++ns;
+    for (int r = gs; r < h; ++r) ++ground[bin[r]];
+    ns += se, ng += h - gs;
   }
   std::vector<float> p(kCells);
   for (int i = 0; i < kCells; ++i) {
@@ -314,6 +329,136 @@ std::vector<int> SolveBoundary(const cv::Mat& sky_t, const cv::Mat& steps_t, con
   return out;
 }
 
+// Globally best boundary for a given unary cost (one row of `unary` per
+// column, n = h + 1 entries: the boundary between rows y - 1 and y), with
+// `smoothness` per pixel of jump around the slope the roll predicts: the
+// L1 distance transform as running minima, then the back-trace.
+std::vector<int> SolveUnary(const cv::Mat& unary, double smoothness, double slope_px_per_col, std::vector<float>& acc) {
+  const int w = unary.rows, n = unary.cols, h = n - 1;
+  const float beta = static_cast<float>(smoothness);
+  std::vector<float> forward(n), ramp(n), column_min(w);
+  for (int y = 0; y < n; ++y) ramp[y] = beta * static_cast<float>(y);
+  std::vector<int> shift(w, 0);
+  for (int c = 1; c < w; ++c)
+    shift[c] = static_cast<int>(std::lround(c * slope_px_per_col) - std::lround((c - 1) * slope_px_per_col));
+  acc.resize(static_cast<size_t>(w) * n);
+  for (int c = 0; c < w; ++c) {
+    const float* u = unary.ptr<float>(c);
+    float* cur = acc.data() + static_cast<size_t>(c) * n;
+    if (c == 0) {
+      std::copy(u, u + n, cur);
+      column_min[0] = *std::min_element(cur, cur + n);
+      continue;
+    }
+    const float* prev = acc.data() + static_cast<size_t>(c - 1) * n;
+    auto prev_at = [&, sh = shift[c]](int y) { return prev[std::clamp(y - sh, 0, h)]; };
+    float run = INFINITY;
+    for (int y = 0; y < n; ++y) {
+      run = std::min(run, prev_at(y) - ramp[y]);
+      forward[y] = run + ramp[y];
+    }
+    run = INFINITY;
+    float lowest = INFINITY;
+    for (int y = h; y >= 0; --y) {
+      run = std::min(run, prev_at(y) + ramp[y]);
+      cur[y] = std::min(forward[y], run - ramp[y]) + u[y];
+      lowest = std::min(lowest, cur[y]);
+    }
+    column_min[c] = lowest;
+  }
+  std::vector<int> out(w);
+  const float* last = acc.data() + static_cast<size_t>(w - 1) * n;
+  out[w - 1] = static_cast<int>(std::min_element(last, last + n) - last);
+  for (int c = w - 1; c > 0; --c) {
+    const float* a = acc.data() + static_cast<size_t>(c - 1) * n;
+    const int o = out[c];
+    float best = INFINITY;
+    int best_y = n;
+    auto consider = [&](int y) {
+      const float v = a[std::clamp(y - shift[c], 0, h)] + beta * static_cast<float>(std::abs(o - y));
+      if (v < best || (v == best && y < best_y)) best = v, best_y = y;
+    };
+    consider(o);
+    for (int d = 1; (o - d >= 0 || o + d < n) && column_min[c - 1] + beta * static_cast<float>(d) <= best; ++d) {
+      if (o - d >= 0) consider(o - d);
+      if (o + d < n) consider(o + d);
+    }
+    out[c - 1] = std::clamp(best_y - shift[c], 0, h);
+  }
+  return out;
+}
+
+// Persistent colour steps: per column and boundary y, the change between the
+// mean colours of the k rows below and of the k rows above, measured both
+// plainly and against the linear trend of the 2k rows above (a sky's smooth
+// gradient is no step), the smaller of the two (next to another edge the
+// trend is meaningless). A step down into saturated blue is within the sky
+// (a deep sky below a pale one, a cloud's base), so it counts nothing.
+HR_VECTOR_CLONES void PersistentSteps(const LabPlanes& lab, int k, cv::Mat& out) {
+  const int w = lab.Rows(), h = lab.Cols();
+  out.create(w, h + 1, CV_32F);
+  std::vector<float> cl(h + 1), ca(h + 1), cb(h + 1);
+  const float inv_k = 1.0f / static_cast<float>(k);
+  for (int c = 0; c < w; ++c) {
+    const float* l = lab.l.ptr<float>(c);
+    const float* a = lab.a.ptr<float>(c);
+    const float* b = lab.b.ptr<float>(c);
+    cl[0] = ca[0] = cb[0] = 0.0f;
+    for (int r = 0; r < h; ++r) cl[r + 1] = cl[r] + l[r], ca[r + 1] = ca[r] + a[r], cb[r + 1] = cb[r] + b[r];
+    float* o = out.ptr<float>(c);
+    std::fill(o, o + h + 1, 0.0f);
+    for (int y = k; y + k <= h; ++y) {
+      const float ul = (cl[y] - cl[y - k]) * inv_k, ua = (ca[y] - ca[y - k]) * inv_k, ub = (cb[y] - cb[y - k]) * inv_k;
+      const float dl = (cl[y + k] - cl[y]) * inv_k, da = (ca[y + k] - ca[y]) * inv_k, db = (cb[y + k] - cb[y]) * inv_k;
+      float step = std::sqrt((dl - ul) * (dl - ul) + (da - ua) * (da - ua) + (db - ub) * (db - ub));
+      if (y >= 2 * k) {
+        const float vl = (cl[y - k] - cl[y - 2 * k]) * inv_k, va = (ca[y - k] - ca[y - 2 * k]) * inv_k,
+                    vb = (cb[y - k] - cb[y - 2 * k]) * inv_k;
+        const float el = dl - (2 * ul - vl), ea = da - (2 * ua - va), eb = db - (2 * ub - vb);
+        step = std::min(step, std::sqrt(el * el + ea * ea + eb * eb));
+      }
+      // b of the rows past the transition
+      const int b0 = std::min(y + 2, h - k), b1 = b0 + k;
+      const float below_b = (cb[b1] - cb[b0]) * inv_k;
+      o[y] = step * (1.0f - Logistic((kDeepBlueB - below_b) * (1.0f / 3)));
+    }
+  }
+}
+
+// The paper's first sharp edge from the top, made global: the boundary with
+// a clear persistent step, whose rows above hold no clear step. "Clear" is
+// relative to the sky's own noise (the median persistent step of the top
+// fifth of the image), so a faint ridge in haze counts when the sky above it
+// is smooth. Returns the boundary per column (work size).
+std::vector<int> TopmostEdge(const cv::Mat& steps, double smoothness, double slope, cv::Mat& unary,
+                             std::vector<float>& acc, float& sky_noise) {
+  const int w = steps.rows, n = steps.cols, h = n - 1;
+  std::vector<float> sample;
+  const int top_rows = std::max(8, h / 5);
+  for (int c = 0; c < w; c += 2) {
+    const float* s = steps.ptr<float>(c);
+    for (int y = kPersistentRows; y < std::min(h, top_rows); ++y) sample.push_back(s[y]);
+  }
+  float noise = 0.1f;
+  if (!sample.empty()) {
+    std::nth_element(sample.begin(), sample.begin() + sample.size() / 2, sample.end());
+    noise = std::max(noise, sample[sample.size() / 2]);
+  }
+  sky_noise = noise;
+  const float thr = std::max(kTopmostMinStep, kTopmostNoiseFactor * noise), cap = 3.0f * thr;
+  unary.create(w, n, CV_32F);
+  for (int c = 0; c < w; ++c) {
+    const float* s = steps.ptr<float>(c);
+    float* u = unary.ptr<float>(c);
+    float above = 0.0f;  // clear steps more than 2 rows above y
+    for (int y = 0; y < n; ++y) {
+      if (y >= 3) above += std::max(0.0f, s[y - 3] - thr);
+      u[y] = -std::min(s[y], cap) + kTopmostAboveWeight * above;
+    }
+  }
+  return SolveUnary(unary, smoothness, slope, acc);
+}
+
 constexpr int kMaxBoxFactor = 257;  // BoxReduce's column sums of k bytes fit 16 bits
 
 // The mean of each k x k block of an 8-bit BGR image, rounded (the last
@@ -344,7 +489,7 @@ HR_VECTOR_CLONES void BoxReduce(const cv::Mat& bgr, int k, std::vector<uint16_t>
 
 // Scratch images of one extraction (work size; `_h` at half of it).
 struct Workspace {
-  cv::Mat reduced, small, steps, sky, bins, steps_h, sky_h;
+  cv::Mat reduced, small, steps, sky, bins, steps_h, sky_h, persistent, unary, deviation, darker, clean;
   std::vector<uint16_t> row_sums;
   LabPlanes lab, lab_h;  // transposed
   EdgePenalty pen, pen_h;
@@ -367,17 +512,14 @@ cv::Mat ToBgr(const cv::Mat& image) {
 }  // namespace
 
 void SkylineOptions::Check() const {
-  auto fail = [](const char* field, double v, const char* rule) {
-    std::ostringstream m;
-    m << "SkylineOptions::" << field << " = " << v << "; violated: " << rule;
-    throw InvalidArgument(m.str());
-  };
-  if (roll_hint_deg && !(std::abs(*roll_hint_deg) <= 45.0)) fail("roll_hint_deg", *roll_hint_deg, "|roll| <= 45");
-  if (max_work_width_px < 64) fail("max_work_width_px", max_work_width_px, ">= 64");
-  if (!(smoothness > 0.0)) fail("smoothness", smoothness, "> 0");
-  if (!(edge_weight >= 0.0)) fail("edge_weight", edge_weight, ">= 0");
-  if (!(min_contrast >= 0.0)) fail("min_contrast", min_contrast, ">= 0");
-  if (!(fog_contrast >= 0.0)) fail("fog_contrast", fog_contrast, ">= 0");
+  if (roll_hint_deg && !(std::abs(*roll_hint_deg) <= 45.0)) ThrowField("SkylineOptions::roll_hint_deg", *roll_hint_deg, "|roll| <= 45");
+  if (max_work_width_px < 64) ThrowField("SkylineOptions::max_work_width_px", max_work_width_px, ">= 64");
+  if (!(smoothness > 0.0)) ThrowField("SkylineOptions::smoothness", smoothness, "> 0");
+  if (!(edge_weight >= 0.0)) ThrowField("SkylineOptions::edge_weight", edge_weight, ">= 0");
+  if (!(min_contrast >= 0.0)) ThrowField("SkylineOptions::min_contrast", min_contrast, ">= 0");
+  if (!(min_contrast_sigmas >= 0.0)) ThrowField("SkylineOptions::min_contrast_sigmas", min_contrast_sigmas, ">= 0");
+  if (!(fog_contrast >= 0.0)) ThrowField("SkylineOptions::fog_contrast", fog_contrast, ">= 0");
+  if (!(fog_max_chroma >= 0.0)) ThrowField("SkylineOptions::fog_max_chroma", fog_max_chroma, ">= 0");
 }
 
 int Skyline::VisibleCount() const {
@@ -457,7 +599,51 @@ Skyline ExtractSkyline(const cv::Mat& image, const SkylineOptions& options) {
     for (int c = 0; c < ww; ++c)
       boundary[c] = std::min(wh, 2 * half[std::min(c / 2, static_cast<int>(half.size()) - 1)]);
   }
-  SkyScoreFromHistograms(work_t, boundary, ws.bins, ws.sky);
+  // The sky model, fitted above the higher of the first boundary and the
+  // topmost clear edge (pass 1 takes white snow for sky; the topmost edge
+  // stops at it), vetoes sky where a pixel departs from the sky colour
+  // expected at its place.
+  PersistentSteps(work_t, kPersistentRows, ws.persistent);
+  float sky_noise = 0.0f;  // median persistent step in the top of the image, delta E
+  const std::vector<int> topmost = TopmostEdge(ws.persistent, options.smoothness, slope, ws.unary, ws.acc, sky_noise);
+  std::vector<int> fit_top(ww);
+  for (int c = 0; c < ww; ++c) fit_top[c] = std::min(topmost[c], boundary[c]) - 3;
+  SkyModel sky_model;
+  sky_model.Fit(work_t, fit_top, 2, 1.0f);
+  sky_model.Deviation(work_t, ws.deviation, &ws.darker);
+  // Sky colours are learnt above the higher of the two boundaries, ground
+  // colours below the lower: the band between (snow under the sky that
+  // pass 1 took for sky, or clouds over sky that the topmost edge stopped
+  // at) is decided by its context in the DP, not by its own colour.
+  std::vector<int> sky_end(ww), ground_start(ww);
+  for (int c = 0; c < ww; ++c) {
+    sky_end[c] = std::min(boundary[c], topmost[c]) - 2;
+    ground_start[c] = std::max(boundary[c], topmost[c]) + 3;
+  }
+  ws.clean.create(ww, wh, CV_8U);
+  for (int c = 0; c < ww; ++c) {
+    const float* dev = ws.deviation.ptr<float>(c);
+    uint8_t* clean = ws.clean.ptr<uint8_t>(c);
+    for (int r = 0; r < wh; ++r) clean[r] = dev[r] < kSkyModelClean ? 1 : 0;
+  }
+  SkyScoreFromHistograms(work_t, sky_end, ground_start, ws.clean, ws.bins, ws.sky);
+  // Subtle departures from the sky colour expected at a pixel's place (more
+  // than 3 robust sigmas, less than ~12 delta E: finer than the histogram's
+  // bins) mark terrain: a hazy far ridge a few delta E off a pale sky.
+  // Larger departures (clouds, snow, rock) are left to the histograms and
+  // their context; saturated blue (a deep sky band) is always sky.
+  const float sky_scale = sky_model.scale();
+  for (int c = 0; c < ww; ++c) {
+    const float* dev = ws.deviation.ptr<float>(c);
+    const float* b = work_t.b.ptr<float>(c);
+    float* sky = ws.sky.ptr<float>(c);
+    for (int r = 0; r < wh; ++r) {
+      const float off = Logistic((dev[r] - kSkyModelVeto) * 2.0f) *
+                        Logistic((kSubtleDeltaE - dev[r] * sky_scale) * (1.0f / 1.5f)) *
+                        (1.0f - Logistic((kDeepBlueB - b[r]) * (1.0f / 3)));
+      sky[r] *= 1.0f - off;
+    }
+  }
   EdgeAbovePenalty(ws.steps, ws.sky, work_t, ws.pen);
   boundary = SolveBoundary(ws.sky, ws.steps, ws.pen, options.smoothness, options.edge_weight, slope, ws.acc);
 
@@ -489,24 +675,28 @@ Skyline ExtractSkyline(const cv::Mat& image, const SkylineOptions& options) {
     if (strips.first[x] != RefineStrips::kNoStrip) fits[x] = RefineColumn(strips, x, image.rows, centres[x], window);
   const std::vector<uint8_t> occluded = FindOccluders(fits, image.rows);
   const int grow = std::max(3, image.cols / 128);  // the occluder's edges and the DP's way round it
+  // The step noise of a smooth sky, a k-row mean difference: times
+  // sqrt(k / 2) for the refinement's 3-row colours, roughly the pixel noise.
+  const double min_contrast = std::max(options.min_contrast, options.min_contrast_sigmas * 2.0 * sky_noise);
   std::vector<uint8_t> grown(occluded);
   for (int x = 0; x < image.cols; ++x)
     if (occluded[x])
       for (int k = std::max(0, x - grow); k <= std::min(image.cols - 1, x + grow); ++k) grown[k] = 1;
   for (int x = 0; x < image.cols; ++x) {
     const ColumnFit& f = fits[x];
-    if (!std::isfinite(f.y) || grown[x] || f.contrast < options.min_contrast) continue;
+    if (!std::isfinite(f.y) || grown[x] || f.contrast < min_contrast) continue;
     out.y[x] = std::clamp(f.y, 0.0, static_cast<double>(image.rows));
-    out.confidence[x] = std::clamp((f.contrast - options.min_contrast) / 20.0, 0.05, 1.0);
+    out.confidence[x] = std::clamp((f.contrast - min_contrast) / 20.0, 0.05, 1.0);
   }
   // Fog: where a horizon is seen against the sky, some of it stands out
   // clearly; when even the clearest tenth of the boundary is faint and the
   // boundary is soft, it is where near terrain fades into fog or whiteout,
   // not the horizon (a faint but sharp far ridge in haze stays).
-  std::vector<double> contrasts, spreads;
+  std::vector<double> contrasts, spreads, chromas;
   for (int x = 0; x < image.cols; ++x)
-    if (std::isfinite(out.y[x])) contrasts.push_back(fits[x].contrast), spreads.push_back(fits[x].spread);
-  if (!contrasts.empty()) {
+    if (std::isfinite(out.y[x]))
+      contrasts.push_back(fits[x].contrast), spreads.push_back(fits[x].spread), chromas.push_back(fits[x].sky_chroma);
+  if (!contrasts.empty() && Quantile(chromas, 0.5) < options.fog_max_chroma) {
     const double clearest = Quantile(contrasts, 0.9), median_spread = Quantile(spreads, 0.5);
     // A fade spreads its colour change over more rows than an edge, which
     // the renderer or the lens smooths over ~2 rows per 1000 columns.

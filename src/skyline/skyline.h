@@ -22,8 +22,18 @@ struct SkylineOptions {
   int max_work_width_px = 512;          // Images are searched at most this wide, then refined at full size.
   double smoothness = 1.5;              // DP cost per pixel of jump between neighbouring columns.
   double edge_weight = 1.0;             // DP reward per unit of colour step (CIELAB delta E) at the boundary.
-  double min_contrast = 6.0;            // Columns whose sky/ground colours differ less (delta E) are null.
-  double fog_contrast = 18.0;           // All null when the clearest 10% of a soft boundary differ less (fog).
+  // Columns whose sky/ground colours differ less are null: delta E, at
+  // least min_contrast and min_contrast_sigmas times the sky's pixel noise
+  // (read from the smooth top of the image: a faint ridge in haze under a
+  // smooth sky stands clear of it).
+  double min_contrast = 2.5;
+  double min_contrast_sigmas = 2.5;
+  // Fog: all null when the sky above the boundary is white-grey (chroma
+  // below fog_max_chroma), the clearest 10% of the boundary differ by less
+  // than fog_contrast (delta E) and the boundary is soft: terrain fading
+  // into fog, not a horizon. A faint ridge under a blue sky is haze, kept.
+  double fog_contrast = 18.0;
+  double fog_max_chroma = 8.0;
   void Check() const;                   // Throws InvalidArgument naming the field.
 };
 

@@ -12,17 +12,12 @@
 namespace horizonreg {
 
 void TrackerOptions::Check() const {
-  auto fail = [](const char* field, double v, const char* rule) {
-    std::ostringstream m;
-    m << "TrackerOptions::" << field << " = " << v << "; violated: " << rule;
-    throw InvalidArgument(m.str());
-  };
   registration.Check();
-  if (!(band_px > 0.0)) fail("band_px", band_px, "band_px > 0");
-  if (!(min_edge_contrast >= 0.0)) fail("min_edge_contrast", min_edge_contrast, ">= 0");
-  if (max_tracked_gap < 0) fail("max_tracked_gap", max_tracked_gap, ">= 0");
-  if (!(prior_compass_sigma_deg > 0.0)) fail("prior_compass_sigma_deg", prior_compass_sigma_deg, "> 0");
-  if (!(calibrated_sigma_floor_deg > 0.0)) fail("calibrated_sigma_floor_deg", calibrated_sigma_floor_deg, "> 0");
+  if (!(band_px > 0.0)) ThrowField("TrackerOptions::band_px", band_px, "band_px > 0");
+  if (!(min_edge_contrast >= 0.0)) ThrowField("TrackerOptions::min_edge_contrast", min_edge_contrast, ">= 0");
+  if (max_tracked_gap < 0) ThrowField("TrackerOptions::max_tracked_gap", max_tracked_gap, ">= 0");
+  if (!(prior_compass_sigma_deg > 0.0)) ThrowField("TrackerOptions::prior_compass_sigma_deg", prior_compass_sigma_deg, "> 0");
+  if (!(calibrated_sigma_floor_deg > 0.0)) ThrowField("TrackerOptions::calibrated_sigma_floor_deg", calibrated_sigma_floor_deg, "> 0");
 }
 
 const char* PoseSourceName(PoseSource s) {
@@ -204,7 +199,7 @@ std::optional<FramePose> Tracker::SensorPose(int index, const SensorReading& raw
 std::optional<Registration> Tracker::RegisterFull(const cv::Mat& frame, const std::optional<SensorReading>& prior) {
   RegistrationOptions o = options_.registration;
   if (focal_px_) {  // the lens does not change during a video
-    const double hfov = RadToDeg(2.0 * std::atan(0.5 * width_ / *focal_px_));
+    const double hfov = HfovFromFocalDeg(*focal_px_, width_);
     o.min_hfov_deg = hfov * 0.99, o.max_hfov_deg = hfov * 1.01;
   }
   if (prior) {
@@ -286,17 +281,17 @@ FramePose Tracker::Process(const cv::Mat& frame_in, int index, const std::option
 std::optional<Registration> RecheckWithGuidedSkyline(const cv::Mat& image, const Skyline& skyline,
                                                      const HorizonProfile& horizon, const Registration& first,
                                                      const RegistrationOptions& options) {
-  constexpr double kMinFirstInliers = 0.6;  // a near miss, not a guess
-  constexpr double kMinStep = 15.0;         // BGR distance of the 3-row means across the step (sky noise ~3)
+  // A near miss, not a guess: at most 0.2 short of the inlier share needed.
+  const double min_first_inliers = options.min_inlier_fraction - 0.2;
+  constexpr double kMinStep = 15.0;  // BGR distance of the 3-row means across the step (sky noise ~3)
   constexpr double kMaxPoseMoveDeg = 0.2;
-  // The columns to re-read inflate the best pose's cost, so its ambiguity
-  // ratio reads low (1.6-1.9 in the tests and dev scenes against 1.75 for a
-  // registration); the search on the re-read skyline checks it again.
-  constexpr double kMinFirstAmbiguity = 1.5;
+  // The columns to re-read inflate the best pose's misfit, so its ambiguity
+  // ratio reads low; the search on the re-read skyline checks it again.
+  const double min_first_ambiguity = 0.85 * options.min_ambiguity_ratio;
   const int w = skyline.width, h = skyline.height;
   const double px_scale = ToleranceScale(w), tau = options.inlier_px * px_scale;
-  if (first.registered || !(first.focal_px > 0.0) || first.inlier_fraction < kMinFirstInliers ||
-      !(first.rms_px <= options.max_rms_px * px_scale) || first.ambiguity_ratio < kMinFirstAmbiguity)
+  if (first.registered || !(first.focal_px > 0.0) || first.inlier_fraction < min_first_inliers ||
+      !(first.model_rms_px <= options.max_rms_px * px_scale) || first.ambiguity_ratio < min_first_ambiguity)
     return std::nullopt;
   const cv::Mat bgr = AsBgr(image);
   if (bgr.type() != CV_8UC3 || bgr.cols != w || bgr.rows != h || static_cast<int>(skyline.y.size()) != w)
@@ -328,11 +323,6 @@ std::optional<Registration> RecheckWithGuidedSkyline(const cv::Mat& image, const
   // skyline: the re-read must be a part of it that can carry the decision.
   if (reread < std::max(8, w / 32)) return std::nullopt;
   Registration r = RefinePose(guided, horizon, first.pose, first.focal_px, false, options);
-  r.ambiguity_ratio = first.ambiguity_ratio;
-  r.second_inlier_fraction = first.second_inlier_fraction;
-  r.hypotheses = first.hypotheses;
-  r.image_extrema = first.image_extrema;
-  r.horizon_extrema = first.horizon_extrema;
   auto moved = [&](const CameraPose& p) {
     return std::abs(AngDiffDeg(p.azimuth_deg, first.pose.azimuth_deg)) > kMaxPoseMoveDeg ||
            std::abs(p.pitch_deg - first.pose.pitch_deg) > kMaxPoseMoveDeg;
@@ -341,12 +331,20 @@ std::optional<Registration> RecheckWithGuidedSkyline(const cv::Mat& image, const
   if (r.registered && moved(r.pose)) {
     r.registered = false;
     m << "the re-read skyline moved the pose; " << first.message;
-  } else if (const Registration search = r.registered ? Register(guided, horizon, options) : Registration{};
-             search.registered && moved(search.pose)) {
-    r.registered = false;  // the re-read skyline fits another pose clearly
-    m << "the re-read skyline registers elsewhere; " << first.message;
   } else if (r.registered) {
-    m << "registered (" << reread << " columns re-read near the DEM horizon)";
+    // The re-read skyline must register on its own, by the whole decision
+    // (ambiguity and evidence included), at the same pose.
+    const Registration search = Register(guided, horizon, options);
+    if (!search.registered) {
+      r.registered = false;
+      m << "the re-read skyline does not register on its own (" << search.message << "); " << first.message;
+    } else if (moved(search.pose)) {
+      r.registered = false;
+      m << "the re-read skyline registers elsewhere; " << first.message;
+    } else {
+      r = search;
+      m << "registered (" << reread << " columns re-read near the DEM horizon)";
+    }
   } else {
     m << r.message << " (after re-reading " << reread << " columns)";
   }

@@ -93,7 +93,7 @@ TEST(Tracker, FollowsARenderedPanAndFallsBackToCalibratedSensors) {
 }
 
 // The cone ring as a flat-coloured photo whose skyline
-// extraction missed a snow field: in the left 21% of the columns the extracted
+// extraction missed a snow field: in the left 30% of the columns the extracted
 // boundary lies 25 px low, at the snow's lower edge.
 class GuidedSkylineTest : public ::testing::Test {
  protected:
@@ -106,7 +106,7 @@ class GuidedSkylineTest : public ::testing::Test {
     skyline.y = truth_y;
     skyline.confidence.assign(k.width, 1.0);
     for (int c = 0; c < k.width; ++c) {
-      const bool snow = c < k.width * 21 / 100;
+      const bool snow = c < k.width * 30 / 100;
       const int top = static_cast<int>(std::lround(truth_y[c]));
       for (int r = std::max(0, top); r < k.height; ++r)
         image.at<cv::Vec3b>(r, c) = r < top + 25 && snow ? cv::Vec3b(235, 235, 235) : cv::Vec3b(60, 110, 70);
@@ -122,8 +122,8 @@ class GuidedSkylineTest : public ::testing::Test {
 
 TEST_F(GuidedSkylineTest, ANearMissBecomesARegistrationAtTheTruePose) {
   const Registration first = Register(skyline, horizon, RegistrationOptions{});
-  ASSERT_FALSE(first.registered);  // three quarters fit: below the 80% needed
-  ASSERT_GE(first.inlier_fraction, 0.6);
+  ASSERT_FALSE(first.registered) << first.message;  // 70% fit, and the misread columns leave it ambiguous
+  ASSERT_GE(first.inlier_fraction, RegistrationOptions{}.min_inlier_fraction - 0.2) << first.message;
   const auto again = RecheckWithGuidedSkyline(image, skyline, horizon, first, RegistrationOptions{});
   ASSERT_TRUE(again);
   ASSERT_TRUE(again->registered) << again->message;
@@ -135,7 +135,7 @@ TEST_F(GuidedSkylineTest, ANearMissBecomesARegistrationAtTheTruePose) {
 
 TEST_F(GuidedSkylineTest, AUniformSkyOrAWrongPoseIsNotConfirmed) {
   const Registration first = Register(skyline, horizon, RegistrationOptions{});
-  ASSERT_FALSE(first.registered);
+  ASSERT_FALSE(first.registered) << first.message;
   // No snow: the sky really reaches down to the extracted boundary.
   cv::Mat plain = image.clone();
   for (int c = 0; c < k.width; ++c)

@@ -59,6 +59,16 @@ class ThrowOnDestroy {
 };
 }  // namespace internal
 
+// Throws InvalidArgument "<field> = <value>; violated: <rule>" (STYLE.md
+// section 5), e.g. ThrowField("HorizonOptions::azimuth_step_deg", 0.7,
+// "360 / step is a whole number"). For every Options::Check().
+template <typename T>
+[[noreturn]] void ThrowField(const char* field, const T& value, const char* rule) {
+  std::ostringstream m;
+  m << field << " = " << value << "; violated: " << rule;
+  throw InvalidArgument(m.str());
+}
+
 }  // namespace horizonreg
 
 // HR_CHECK(cond) << "message": throws horizonreg::LogicError when cond is false.

@@ -1,0 +1,277 @@
+#!/usr/bin/env python3
+"""Registration and skyline accuracy on real photographs (issue 7's figures).
+
+Every photo of SHARED/real/*/ with a NAME.truth.json (../shared/real/README.md):
+the truth is the author's camera fitted to ground control points; its
+yaw_deg / pitch_deg are those of the ray through the image centre, which
+`register` reports as "center_ray".
+
+Modes (each a per-photo table and a summary):
+  plain     register with no prior (position and altitude from the truth)
+  camera    register --camera built from the truth's camera block
+  initial   register --initial 2 deg off the truth in azimuth, then pitch (+-)
+  traced    register --skyline with the hand-traced horizon (the matching alone)
+  skyline   skyline accuracy against the hand-traced horizon (traced columns)
+  wrong     register from positions 2-10 km away and against another region's
+            DEM: every one must answer no_match (a registration there is false)
+Usage: eval_real.py HORIZONREG SHARED_DIR [--modes plain,camera,...] [--check]
+       [--overlay-dir DIR] [--only NAME,...] [--jobs N]
+With --check, exits 1 when a figure misses the floor it is checked against
+(--floors plain=12,camera=12,initial=13,skyline=0.9 by default: the issue's
+targets) or when any registration is false.
+"""
+import concurrent.futures, json, math, os, statistics, subprocess, sys, tempfile
+
+ALL_MODES = ["plain", "camera", "initial", "traced", "traced-pinhole", "skyline", "wrong"]
+# Positions 2-10 km away (bearing deg, distance m) and other regions' DEMs
+# (with a position inside each), for the false-registration probes.
+WRONG_OFFSETS = [(0, 2000), (120, 3000), (240, 5000), (60, 7000), (300, 10000)]
+OTHER_DEMS = [("mt_rainier_90m.tif", 46.80, -121.73), ("N47E009.hgt", 47.25, 9.35)]
+
+
+def angdiff(a, b):
+    return (a - b + 180.0) % 360.0 - 180.0
+
+
+def offset_position(lat, lon, bearing_deg, dist_m):
+    r = 6371000.0
+    b = math.radians(bearing_deg)
+    dlat = dist_m * math.cos(b) / r
+    dlon = dist_m * math.sin(b) / (r * math.cos(math.radians(lat)))
+    return lat + math.degrees(dlat), lon + math.degrees(dlon)
+
+
+def register(binary, shared, photo_dir, name, truth, extra, dem=None, lat=None, lon=None, alt=True, overlay=None):
+    with tempfile.NamedTemporaryFile(suffix=".json") as tmp:
+        cmd = [binary, "register", os.path.join(photo_dir, truth["image"]),
+               "--dem", os.path.join(shared, "dem", dem or truth["dem"]),
+               "--lat", repr(truth["lat"] if lat is None else lat), "--lon", repr(truth["lon"] if lon is None else lon),
+               "--json", tmp.name] + extra
+        cmd += ["--alt", repr(truth["alt_m"])] if alt else ["--agl", "2"]
+        if overlay:
+            cmd += ["--overlay", overlay]
+        p = subprocess.run(cmd, capture_output=True, text=True)
+        if p.returncode != 0:
+            return {"status": "error", "message": p.stderr.strip()[:120], "stderr": p.stderr}
+        r = json.load(open(tmp.name))
+        r["stderr"] = p.stderr
+        return r
+
+
+def camera_file(truth, path):
+    c = truth["camera"]
+    json.dump({"fx_px": c["fx_px"], "fy_px": c["fy_px"], "cx_px": c["cx_px"], "cy_px": c["cy_px"],
+               "k": c["k"], "p": c["p"], "width": truth["width"], "height": truth["height"]}, open(path, "w"))
+
+
+def traced_file(truth, path):
+    json.dump({"width": truth["width"], "height": truth["height"], "y": truth["skyline_row"]}, open(path, "w"))
+
+
+def errors(r, t):
+    if r.get("status") != "registered":
+        return None
+    cr = r["center_ray"]
+    return {"daz": angdiff(cr["azimuth_deg"], t["yaw_deg"]), "dp": cr["elevation_deg"] - t["pitch_deg"],
+            "dr": r["roll_deg"] - t["roll_deg"], "dh": 100.0 * (r["hfov_deg"] / t["hfov_deg"] - 1.0)}
+
+
+def fmt(v, f):
+    return format(v, f) if v is not None and not (isinstance(v, float) and math.isnan(v)) else "-"
+
+
+def pose_table(title, rows, tol):
+    print(f"\n== {title} ==")
+    print(f"{'photo':<24}{'status':<11}{'d_az':>8}{'d_pitch':>8}{'d_roll':>8}{'d_hfov%':>8}{'inl':>6}{'ambig':>7}"
+          f"{'k1':>7}{'k1true':>7}{'dem_px':>7}{'ms':>6}  note")
+    for name, t, r in rows:
+        e = errors(r, t)
+        cam = r.get("camera") or {}
+        k1 = cam.get("k") or [None]
+        note = "" if r.get("status") == "registered" else r.get("message", "")[:60]
+        if r.get("status") == "no_match" and r.get("candidates"):
+            c0 = r["candidates"][0]
+            if (r.get("camera") or {}).get("source") != "file":  # centred camera: the axis is the centre ray
+                note = f"[best {angdiff(c0['azimuth_deg'], t['yaw_deg']):+.2f}/{c0['pitch_deg'] - t['pitch_deg']:+.2f}] " + note
+        if e and max(abs(e["daz"]), abs(e["dp"])) > 1.0:
+            note = "FALSE REGISTRATION " + note
+        dem = r.get("dem") or {}
+        print(f"{name:<24}{r.get('status', '?'):<11}{fmt(e and e['daz'], '8.3f'):>8}{fmt(e and e['dp'], '8.3f'):>8}"
+              f"{fmt(e and e['dr'], '8.3f'):>8}{fmt(e and e['dh'], '8.2f'):>8}{fmt(r.get('inlier_fraction'), '6.2f'):>6}"
+              f"{fmt(r.get('ambiguity_ratio'), '7.2f'):>7}{fmt(k1[0] if cam.get('k1_estimated') or cam.get('source') == 'file' else None, '7.3f'):>7}"
+              f"{t['camera']['k'][0]:>7.3f}{fmt(dem.get('skyline_above_dem_px'), '7.2f'):>7}"
+              f"{fmt((r.get('timing_ms') or {}).get('total'), '6.0f'):>6}  {note}")
+    errs = [errors(r, t) for _, t, r in rows]
+    good = [e for e in errs if e and abs(e["daz"]) <= tol and abs(e["dp"]) <= tol]
+    false = [n for (n, _, _), e in zip(rows, errs) if e and max(abs(e["daz"]), abs(e["dp"])) > 1.0]
+    reg = [e for e in errs if e]
+    med = lambda k: statistics.median(abs(e[k]) for e in reg) if reg else float("nan")
+    print(f"registered within {tol} deg (azimuth and pitch of the centre ray): {len(good)}/{len(rows)}; "
+          f"registered: {len(reg)}; false (> 1 deg): {len(false)} {false}")
+    print(f"median |d_az| {med('daz'):.3f} deg, |d_pitch| {med('dp'):.3f} deg, |d_roll| {med('dr'):.3f} deg, "
+          f"|d_hfov| {med('dh'):.2f}%")
+    times = [r["timing_ms"]["total"] for _, _, r in rows if r.get("timing_ms")]
+    if times:
+        print(f"in-process time: median {statistics.median(times):.0f} ms, max {max(times):.0f} ms")
+    stderr = [n for n, _, r in rows if r.get("stderr", "").strip()]
+    if stderr:
+        print(f"stderr not empty: {stderr}")
+    return len(good), len(false), med("daz"), med("dp")
+
+
+def skyline_table(binary, photos):
+    print("\n== skyline against the hand-traced horizon (traced columns only) ==")
+    print(f"{'photo':<24}{'traced':>7}{'given':>7}{'<=2px':>7}{'<=5px':>7}{'median':>8}{'p90':>7}")
+    tot_traced = tot_given = tot_2 = 0
+    for name, t, photo_dir in photos:
+        traced = [(x, y) for x, y in enumerate(t["skyline_row"]) if y is not None]
+        if not traced:
+            print(f"{name:<24}{'(no trace)':>7}")
+            continue
+        with tempfile.NamedTemporaryFile(suffix=".json") as tmp:
+            subprocess.run([binary, "skyline", os.path.join(photo_dir, t["image"]), "--json", tmp.name], check=True)
+            s = json.load(open(tmp.name))
+        d = [abs(s["y"][x] - y) for x, y in traced if s["y"][x] is not None]
+        given = len(d)
+        w2 = sum(v <= 2 for v in d)
+        w5 = sum(v <= 5 for v in d)
+        tot_traced += len(traced)
+        tot_given += given
+        tot_2 += w2
+        dd = sorted(d)
+        print(f"{name:<24}{len(traced):>7}{100 * given / len(traced):>6.1f}%{100 * w2 / len(traced):>6.1f}%"
+              f"{100 * w5 / len(traced):>6.1f}%{fmt(statistics.median(dd) if dd else None, '8.2f'):>8}"
+              f"{fmt(dd[int(0.9 * len(dd))] if dd else None, '7.1f'):>7}")
+    w = tot_2 / tot_traced if tot_traced else float("nan")
+    g = tot_given / tot_traced if tot_traced else float("nan")
+    print(f"all traced columns: {tot_traced}; within 2 px: {100 * w:.1f}% (of the traced); given a value: {100 * g:.1f}%")
+    return w, g
+
+
+def main():
+    argv = sys.argv[1:]
+    opt = lambda k, d=None: argv[argv.index(k) + 1] if k in argv else d
+    check = "--check" in argv
+    modes = opt("--modes", ",".join(ALL_MODES)).split(",")
+    only = set(opt("--only").split(",")) if opt("--only") else None
+    overlay_dir = opt("--overlay-dir")
+    jobs = int(opt("--jobs", "2"))
+    floors = {"plain": 12, "camera": 12, "initial": 13, "skyline": 0.9}
+    for kv in (opt("--floors") or "").split(","):
+        if "=" in kv:
+            k, v = kv.split("=")
+            floors[k] = float(v)
+    args = [a for i, a in enumerate(argv) if not a.startswith("--") and
+            (i == 0 or argv[i - 1] not in ("--modes", "--only", "--overlay-dir", "--jobs", "--floors"))]
+    binary, shared = args[0], args[1]
+    real = os.path.join(shared, "real")
+    if not os.path.isdir(real):
+        print("SKIPPED: ../shared/real is absent")
+        return 77
+    photos = []
+    for sub in sorted(os.listdir(real)):
+        d = os.path.join(real, sub)
+        if not os.path.isdir(d):
+            continue
+        for f in sorted(os.listdir(d)):
+            if f.endswith(".truth.json") and (not only or f[:-11] in only):
+                photos.append((f[:-11], json.load(open(os.path.join(d, f))), d))
+    if overlay_dir:
+        os.makedirs(overlay_dir, exist_ok=True)
+    failed = False
+    tmpdir = tempfile.mkdtemp(prefix="eval_real_")
+    pool = concurrent.futures.ThreadPoolExecutor(max_workers=jobs)
+
+    def run_all(fn):
+        return list(pool.map(fn, photos))
+
+    if "plain" in modes:
+        rows = run_all(lambda p: (p[0], p[1], register(
+            binary, shared, p[2], p[0], p[1], [],
+            overlay=os.path.join(overlay_dir, p[0] + ".png") if overlay_dir else None)))
+        good, false, maz, mp = pose_table("no prior", rows, 0.5)
+        if check and (good < floors["plain"] or false):
+            print("FAIL: no-prior registration misses its floor or has a false registration")
+            failed = True
+    if "camera" in modes:
+        def with_camera(p):
+            path = os.path.join(tmpdir, p[0] + ".camera.json")
+            camera_file(p[1], path)
+            return p[0], p[1], register(binary, shared, p[2], p[0], p[1], ["--camera", path])
+        good, false, _, _ = pose_table("--camera from the truth's camera model", run_all(with_camera), 0.3)
+        if check and (good < floors["camera"] or false):
+            print("FAIL: --camera registration misses its floor or has a false registration")
+            failed = True
+    if "initial" in modes:
+        offsets = [(2, 0), (-2, 0), (0, 2), (0, -2)]
+        jobs_list = [(p, o) for p in photos for o in offsets]
+
+        def initial(po):
+            (name, t, d), (daz, dp) = po
+            c = t["camera"]
+            init = f"{t['yaw_deg'] + daz},{t['pitch_deg'] + dp},{t['roll_deg']},{t['hfov_deg']}"
+            return f"{name} {daz:+d}/{dp:+d}", t, register(binary, shared, d, name, t, ["--initial=" + init])
+        rows = list(pool.map(initial, jobs_list))
+        good, false, _, _ = pose_table("--initial 2 deg off (azimuth or pitch), no camera file", rows, 0.5)
+        converged_photos = len({n.split()[0] for n, t, r in rows
+                                if all(errors(rr, tt) and abs(errors(rr, tt)["daz"]) <= 0.5 and
+                                       abs(errors(rr, tt)["dp"]) <= 0.5
+                                       for nn, tt, rr in rows if nn.split()[0] == n.split()[0])})
+        print(f"photos converging from all four starts: {converged_photos}/{len(photos)}")
+        if check and (converged_photos < floors["initial"] or false):
+            print("FAIL: --initial misses its floor or has a false registration")
+            failed = True
+    if "traced" in modes:
+        def traced(p):
+            if not any(y is not None for y in p[1]["skyline_row"]):
+                return None
+            path = os.path.join(tmpdir, p[0] + ".traced.json")
+            traced_file(p[1], path)
+            return p[0], p[1], register(binary, shared, p[2], p[0], p[1], ["--skyline", path])
+        rows = [r for r in run_all(traced) if r]
+        _, false, _, _ = pose_table("--skyline: the hand-traced horizon (matching alone)", rows, 0.5)
+        if check and false:
+            failed = True
+    if "traced-pinhole" in modes:
+        def traced_pinhole(p):
+            if not any(y is not None for y in p[1]["skyline_row"]):
+                return None
+            path = os.path.join(tmpdir, p[0] + ".traced.json")
+            traced_file(p[1], path)
+            return p[0], p[1], register(binary, shared, p[2], p[0], p[1], ["--skyline", path, "--pinhole"])
+        rows = [r for r in run_all(traced_pinhole) if r]
+        pose_table("--skyline --pinhole: the hand-traced horizon, no k1", rows, 0.5)
+    if "skyline" in modes:
+        w, g = skyline_table(binary, photos)
+        if check and w < floors["skyline"]:
+            print("FAIL: skyline accuracy misses its floor")
+            failed = True
+    if "wrong" in modes:
+        probes = []
+        for p in photos:
+            for bearing, dist in WRONG_OFFSETS:
+                lat, lon = offset_position(p[1]["lat"], p[1]["lon"], bearing, dist)
+                probes.append((p, f"{dist / 1000:.0f} km at {bearing}", None, lat, lon, True))
+            for dem, lat, lon in OTHER_DEMS:
+                if os.path.exists(os.path.join(shared, "dem", dem)):
+                    probes.append((p, dem, dem, lat, lon, False))
+
+        def probe(x):
+            (name, t, d), label, dem, lat, lon, alt = x
+            return name, label, register(binary, shared, d, name, t, [], dem=dem, lat=lat, lon=lon, alt=alt)
+        out = list(pool.map(probe, probes))
+        print("\n== wrong position (2-10 km away) or another region's DEM: all must be no_match ==")
+        bad = [(n, l, r.get("status")) for n, l, r in out if r.get("status") == "registered"]
+        errs = [(n, l, r.get("message")) for n, l, r in out if r.get("status") == "error"]
+        for n, l, s in bad:
+            print(f"  FALSE REGISTRATION: {n} from {l}")
+        for n, l, m in errs:
+            print(f"  error: {n} from {l}: {m}")
+        print(f"probes: {len(out)}; registered (false): {len(bad)}; errors: {len(errs)}")
+        if check and (bad or errs):
+            failed = True
+    return 1 if failed else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,52 @@
+// SPDX-License-Identifier: MIT
+// Internal to the skyline module: the sky's colour as a smooth function of
+// the position in the image, fitted robustly to the pixels above a first
+// boundary, and how far every pixel departs from it. A colour histogram
+// mixes the deep blue at the top with the pale sky near the horizon, where
+// white snow falls too; the expected sky colour *at that place* tells them
+// apart (real photos: sky within ~2 delta E of the model, snow, haze-blue
+// ridges and rock 5-60 delta E off).
+#pragma once
+
+#include <array>
+#include <vector>
+
+#include "skyline/lab.h"
+
+namespace horizonreg::skyline_detail {
+
+class SkyModel {
+ public:
+  // Fits L, a and b each to a polynomial in the normalised position (x
+  // across, y down, both in [0, 1]): 1, x, y, x^2, xy, y^2, y^3, x^2 y,
+  // x y^2, by iteratively reweighted least squares (Cauchy weights at 2.5
+  // times the robust residual scale) over the pixels of the transposed work
+  // planes (one row per image column) above top[c] in column c; every
+  // `stride`-th column and row is used. The scale is at least scale_floor
+  // (delta E; rendered skies have no noise). Returns false when fewer than
+  // 64 pixels are available (then the model is flat: no information).
+  bool Fit(const LabPlanes& lab, const std::vector<int>& top, int stride, float scale_floor);
+  // The same over the pixels above top[c] whose deviation from this model
+  // (Deviation(), `dev`) is below max_dev: grows the sky region past what
+  // the first fit saw (the blue between clouds) without taking in what
+  // departs from it (snow). Keeps the current model when too few pixels.
+  bool Refit(const LabPlanes& lab, const std::vector<int>& top, const cv::Mat& dev, float max_dev, int stride,
+             float scale_floor);
+  // Per pixel of the planes: the colour distance to the model, in units of
+  // its robust scale (planes layout: one row per column), into `dev`; and,
+  // when `darker` is given, how much darker than the model the pixel is
+  // (predicted L* minus L*), in the same units.
+  void Deviation(const LabPlanes& lab, cv::Mat& dev, cv::Mat* darker = nullptr) const;
+  float scale() const { return scale_; }
+  bool fitted() const { return fitted_; }
+
+ private:
+  static constexpr int kTerms = 9;
+  bool FitMasked(const LabPlanes& lab, const std::vector<int>& top, const cv::Mat* dev, float max_dev, int stride,
+                 float scale_floor);
+  std::array<std::array<double, kTerms>, 3> coef_{};  // per channel
+  float scale_ = 1.0f;
+  bool fitted_ = false;
+};
+
+}  // namespace horizonreg::skyline_detail
