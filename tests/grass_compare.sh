@@ -12,8 +12,8 @@ set -euo pipefail
 bin=$1
 shared=$2
 dem="$shared/dem/SainteHelens.dem"
-if [ ! -f "$dem" ]; then echo "SKIPPED: $dem is absent (../shared)"; exit 0; fi
-if ! command -v grass >/dev/null; then echo "SKIPPED: GRASS GIS (grass-core) is not installed"; exit 0; fi
+if [ ! -f "$dem" ]; then echo "SKIPPED: $dem is absent (../shared)"; exit 77; fi
+if ! command -v grass >/dev/null; then echo "SKIPPED: GRASS GIS (grass-core) is not installed"; exit 77; fi
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 # Observer: the post at UTM (562200, 5119500), 4.5 km north of the crater.

@@ -51,7 +51,7 @@ void AddRegisterCommand(CLI::App& app, RegisterArgs& args);
 int RunRegister(const RegisterArgs& args);
 
 struct OverlayArgs {
-  std::string image, pose, landmarks, output;
+  std::string image, pose, landmarks, output, camera;
   std::vector<std::string> dem;
   bool no_ridges = false;
 };
@@ -64,6 +64,7 @@ struct CameraPoseFile {
   CameraPose pose;
   int width = 0, height = 0;
   double focal_px = 0.0;
+  CameraIntrinsics intrinsics;  // the "camera" block when present (lens, principal point), else a centred pinhole
 };
 CameraPoseFile ReadPoseFile(const std::string& path);
 
@@ -78,7 +79,7 @@ struct RenderArgs {
   double lat = NAN, lon = NAN;
   std::optional<double> agl, alt;
   double azimuth = NAN, pitch = 0.0, roll = 0.0, hfov = 60.0;
-  std::string size = "1024x683", landmarks, panorama, output;
+  std::string size = "1024x683", landmarks, panorama, output, camera;
   double refraction = kDefaultRefraction;
   bool no_overlay = false;
 };
@@ -87,7 +88,7 @@ int RunRender(const RenderArgs& args);
 std::pair<int, int> ParseSize(const std::string& s);
 
 struct TrackArgs {
-  std::string input, sensors, calibration_in, calibration_out, poses, output;
+  std::string input, sensors, calibration_in, calibration_out, poses, output, camera;
   std::vector<std::string> dem;
   double lat = NAN, lon = NAN;
   std::optional<double> agl, alt;

@@ -8,6 +8,7 @@
 #include "cli/image_io.h"
 #include "cli/site.h"
 #include "overlay/overlay.h"
+#include "pipeline/camera_file.h"
 #include "util/errors.h"
 #include "util/json.h"
 #include "util/text.h"
@@ -22,6 +23,8 @@ void AddOverlayCommand(CLI::App& app, OverlayArgs& a) {
   c->add_option("--landmarks", a.landmarks, "Named peaks: GeoJSON points (name, ele) or CSV name,lat,lon[,ele]");
   c->add_option("-o,--output", a.output, "Output PNG")->required();
   c->add_flag("--no-ridges", a.no_ridges, "Do not draw the inner ridge lines");
+  c->add_option("--camera", a.camera,
+                "Known intrinsics (OpenCV calibration YAML/JSON or camera JSON); default: the pose file's camera");
 }
 
 namespace {
@@ -50,14 +53,29 @@ CameraPoseFile ReadPoseFile(const std::string& path) {
   p.focal_px = Number(j, "focal_px", path);
   if (!(p.focal_px > 0) || p.width < 1 || p.height < 1)
     throw InvalidArgument("pose: '" + path + "' has an invalid focal_px, width or height");
+  p.intrinsics = CameraIntrinsics::FromHfov(p.width, p.height, 60.0);
+  p.intrinsics.focal_px = p.focal_px;
+  if (j.contains("camera") && j["camera"].is_object() && j["camera"].contains("focal_px")) {
+    // The lens the registration used (register writes its "camera" block in
+    // this camera-file layout).
+    try {
+      nlohmann::json cam = j["camera"];
+      cam["width"] = p.width;
+      cam["height"] = p.height;
+      p.intrinsics = CameraFromJson(cam, p.width, p.height, path);
+    } catch (const InvalidArgument& e) {
+      throw InvalidArgument("pose: '" + path + "': camera: " + e.what());
+    }
+  }
   return p;
 }
 
 int RunOverlay(const OverlayArgs& a) {
   const CameraPoseFile p = ReadPoseFile(a.pose);
   const cv::Mat image = ReadImage(a.image);
-  CameraIntrinsics k = CameraIntrinsics::FromHfov(image.cols, image.rows, 60.0);
-  k.focal_px = p.focal_px * image.cols / p.width;  // the photo may be a resized copy
+  // The photo may be a resized copy of the registered one.
+  const CameraIntrinsics k = a.camera.empty() ? p.intrinsics.Resized(image.cols, image.rows)
+                                              : ReadCameraFile(a.camera, image.cols, image.rows);
   const Site site = LoadSite(a.dem, p.lat, p.lon, std::nullopt, p.eye_height_m, 100'000.0);
   HorizonOptions ho;
   ho.azimuth_step_deg = 0.1;

@@ -8,6 +8,7 @@
 #include "cli/image_io.h"
 #include "cli/site.h"
 #include "overlay/overlay.h"
+#include "pipeline/camera_file.h"
 #include "render/render.h"
 #include "util/angles.h"
 #include "util/errors.h"
@@ -26,6 +27,9 @@ void AddRenderCommand(CLI::App& app, RenderArgs& a) {
   c->add_option("--roll", a.roll, "Camera roll, degrees (right side down)")->capture_default_str();
   c->add_option("--hfov", a.hfov, "Horizontal opening angle, degrees")->capture_default_str();
   c->add_option("--size", a.size, "Image size WxH")->capture_default_str();
+  c->add_option("--camera", a.camera,
+                "Known intrinsics (OpenCV calibration YAML/JSON or camera JSON) for the view, at --size: the lens "
+                "replaces --hfov");
   c->add_option("--landmarks", a.landmarks, "Named peaks for the labels (GeoJSON or CSV)");
   c->add_flag("--no-overlay", a.no_overlay, "The terrain only, without the overlay");
   c->add_option("--panorama", a.panorama, "Also write a 360-degree panorama PNG here");
@@ -52,7 +56,7 @@ int RunRender(const RenderArgs& a) {
   ro.Check();
   const Site site = LoadSite(a.dem, a.lat, a.lon, a.agl, a.alt, ro.max_distance_m);
   const CameraPose pose{WrapAzimuthDeg(a.azimuth), a.pitch, a.roll};
-  const CameraIntrinsics k = CameraIntrinsics::FromHfov(w, h, a.hfov);
+  const CameraIntrinsics k = a.camera.empty() ? CameraIntrinsics::FromHfov(w, h, a.hfov) : ReadCameraFile(a.camera, w, h);
   cv::Mat view = RenderView(site.window, site.observer, pose, k, ro);
   HorizonOptions ho;
   ho.azimuth_step_deg = 0.1;

@@ -16,6 +16,7 @@
 #include "cli/output.h"
 #include "cli/site.h"
 #include "overlay/overlay.h"
+#include "pipeline/camera_file.h"
 #include "track/track.h"
 #include "util/errors.h"
 
@@ -68,7 +69,9 @@ int RunTrack(const TrackArgs& a) {
   HorizonOptions ho;
   ho.azimuth_step_deg = 0.1;
   const HorizonProfile horizon = ComputeHorizon(site.window, site.observer, ho);
-  Tracker tracker(horizon, frame.cols, frame.rows, TrackerOptions{});
+  TrackerOptions to;
+  if (!a.camera.empty()) to.registration.known_intrinsics = ReadCameraFile(a.camera, frame.cols, frame.rows);
+  Tracker tracker(horizon, frame.cols, frame.rows, to);
   if (start_calibration) tracker.SetCalibration(*start_calibration);
 
   cv::VideoWriter writer;
@@ -101,9 +104,12 @@ int RunTrack(const TrackArgs& a) {
   bool seen_visual = false;
   auto emit = [&](const cv::Mat& img, const FramePose& p) {
     ++counts[static_cast<int>(p.source)];
+    const bool has_pose = p.source != PoseSource::kNone && (p.focal_px > 0 || tracker.lens());
     CameraIntrinsics k = CameraIntrinsics::FromHfov(img.cols, img.rows, 50.0);
-    const bool has_pose = p.source != PoseSource::kNone && p.focal_px > 0;
-    if (has_pose) k.focal_px = p.focal_px;
+    if (tracker.lens())
+      k = *tracker.lens();
+    else if (p.focal_px > 0)
+      k.focal_px = p.focal_px;
     if (p.source != PoseSource::kNone) {
       csv << p.frame << "," << Fixed(p.pose.azimuth_deg, 4) << "," << Fixed(p.pose.pitch_deg, 4) << ","
           << Fixed(p.pose.roll_deg, 4) << "," << (has_pose ? Fixed(k.HfovDeg(), 3) : "") << ","

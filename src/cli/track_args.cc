@@ -24,6 +24,9 @@ void AddTrackCommand(CLI::App& app, TrackArgs& a) {
   c->add_option("--poses", a.poses, "Write frame,azimuth_deg,pitch_deg,roll_deg,hfov_deg,source here (CSV)");
   c->add_option("-o,--output", a.output, "Overlay video (.mp4 or .avi)");
   c->add_option("--max-frames", a.max_frames, "Stop after this many frames (0: all)")->capture_default_str();
+  c->add_option("--camera", a.camera,
+                "Known intrinsics (OpenCV calibration YAML/JSON or camera JSON); default: fitted at the first "
+                "registration and kept");
 }
 
 }  // namespace horizonreg::cli

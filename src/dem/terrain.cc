@@ -351,6 +351,87 @@ GeodeticPoint Terrain::CenterOf(size_t i) const {
   return {y, x, 0.0};
 }
 
+namespace {
+
+// Transforms n points (x, y) in place from the file's CRS to WGS84 (lon, lat).
+void ToWgs84(const Source& a, std::vector<double>& x, std::vector<double>& y) {
+  std::vector<double> z(x.size(), 0.0);
+  if (!OCTTransform(static_cast<OGRCoordinateTransformationH>(a.to_wgs84.get()), static_cast<int>(x.size()), x.data(),
+                    y.data(), z.data()))
+    throw IoError("dem: cannot transform the posts of " + Quote(a.path) + " to WGS84: " + LastGdalMessage());
+}
+
+// The WGS84 position of every post of a projected grid. A projection is
+// smooth over a few posts: the posts of a lattice every kLatticeStep posts
+// are transformed exactly and the others interpolated bilinearly (longitudes
+// unwrapped around each cell), which is checked at the centres of a sample
+// of cells against the exact transform; beyond kLatticeTolDeg (~0.1 m, a
+// thousandth of a post) every post is transformed. PROJ costs ~0.3 us a
+// point: 120 ms for a 640 x 590 window, ~2 ms for the lattice (worst cell
+// of dem_Columbia.tif, transverse Mercator 60 km off its meridian: 2 cm).
+void PostPositions(const Source& a, const PixelWindow& w, DemGrid& g) {
+  constexpr int kLatticeStep = 8;
+  constexpr double kLatticeTolDeg = 1e-6;
+  const int W = g.width, H = g.height;
+  g.lon_deg.resize(static_cast<size_t>(W) * H);
+  g.lat_deg.resize(g.lon_deg.size());
+  auto exact_all = [&] {
+    for (int r = 0; r < H; ++r)
+      for (int c = 0; c < W; ++c) {
+        const size_t k = static_cast<size_t>(r) * W + c;
+        GeoOfPixel(a, w.c0 + c, w.r0 + r, g.lon_deg[k], g.lat_deg[k]);
+      }
+    ToWgs84(a, g.lon_deg, g.lat_deg);
+  };
+  if (W < 2 * kLatticeStep || H < 2 * kLatticeStep) return exact_all();
+  // Lattice columns and rows: every kLatticeStep-th, and the last.
+  std::vector<int> cols, rows;
+  for (int c = 0; c < W - 1; c += kLatticeStep) cols.push_back(c);
+  cols.push_back(W - 1);
+  for (int r = 0; r < H - 1; r += kLatticeStep) rows.push_back(r);
+  rows.push_back(H - 1);
+  const int nc = static_cast<int>(cols.size()), nr = static_cast<int>(rows.size());
+  std::vector<double> lx(static_cast<size_t>(nc) * nr), ly(lx.size());
+  for (int j = 0; j < nr; ++j)
+    for (int i = 0; i < nc; ++i) GeoOfPixel(a, w.c0 + cols[i], w.r0 + rows[j], lx[j * nc + i], ly[j * nc + i]);
+  ToWgs84(a, lx, ly);
+  // Bilinear within each lattice cell, longitudes relative to its corner.
+  auto interpolate = [&](int i, int j, double fc, double fr, double& lon, double& lat) {
+    const size_t k00 = static_cast<size_t>(j) * nc + i, k10 = k00 + 1, k01 = k00 + nc, k11 = k01 + 1;
+    const double l0 = lx[k00];
+    const double d10 = AngDiffDeg(lx[k10], l0), d01 = AngDiffDeg(lx[k01], l0), d11 = AngDiffDeg(lx[k11], l0);
+    lon = l0 + (1 - fr) * fc * d10 + fr * ((1 - fc) * d01 + fc * d11);
+    lat = (1 - fr) * ((1 - fc) * ly[k00] + fc * ly[k10]) + fr * ((1 - fc) * ly[k01] + fc * ly[k11]);
+  };
+  // Check: the centres of a sample of cells, exactly and interpolated.
+  std::vector<double> cx, cy;
+  std::vector<std::pair<int, int>> cells;
+  for (int j = 0; j + 1 < nr; j += std::max(1, (nr - 1) / 6))
+    for (int i = 0; i + 1 < nc; i += std::max(1, (nc - 1) / 6)) {
+      cells.push_back({i, j});
+      double px, py;
+      GeoOfPixel(a, w.c0 + 0.5 * (cols[i] + cols[i + 1]), w.r0 + 0.5 * (rows[j] + rows[j + 1]), px, py);
+      cx.push_back(px), cy.push_back(py);
+    }
+  ToWgs84(a, cx, cy);
+  for (size_t t = 0; t < cells.size(); ++t) {
+    double lon, lat;
+    interpolate(cells[t].first, cells[t].second, 0.5, 0.5, lon, lat);
+    if (!(std::abs(AngDiffDeg(lon, cx[t])) <= kLatticeTolDeg && std::abs(lat - cy[t]) <= kLatticeTolDeg))
+      return exact_all();
+  }
+  for (int j = 0; j + 1 < nr; ++j)
+    for (int r = rows[j]; r <= rows[j + 1]; ++r)
+      for (int i = 0; i + 1 < nc; ++i)
+        for (int c = cols[i]; c <= cols[i + 1]; ++c) {
+          const size_t k = static_cast<size_t>(r) * W + c;
+          interpolate(i, j, static_cast<double>(c - cols[i]) / (cols[i + 1] - cols[i]),
+                      static_cast<double>(r - rows[j]) / (rows[j + 1] - rows[j]), g.lon_deg[k], g.lat_deg[k]);
+        }
+}
+
+}  // namespace
+
 TerrainWindow Terrain::ReadWindow(const GeodeticPoint& center, double radius_m) const {
   if (!(radius_m > 0.0) || !std::isfinite(radius_m)) {
     std::ostringstream m;
@@ -433,17 +514,7 @@ TerrainWindow Terrain::ReadWindow(const GeodeticPoint& center, double radius_m) 
       ReadPosts(a, w, buf.data(), w.w());
       FillVoids(buf, std::vector<uint8_t>(buf.size(), 1), g.width, g.height, Quote(a.path));
       g.height_m = std::move(buf);
-      g.lon_deg.resize(g.height_m.size());
-      g.lat_deg.resize(g.height_m.size());
-      std::vector<double> z(g.height_m.size(), 0.0);
-      for (int r = 0; r < g.height; ++r)
-        for (int c = 0; c < g.width; ++c) {
-          const size_t k = static_cast<size_t>(r) * g.width + c;
-          GeoOfPixel(a, w.c0 + c, w.r0 + r, g.lon_deg[k], g.lat_deg[k]);
-        }
-      if (!OCTTransform(static_cast<OGRCoordinateTransformationH>(a.to_wgs84.get()), static_cast<int>(z.size()),
-                        g.lon_deg.data(), g.lat_deg.data(), z.data()))
-        throw IoError("dem: cannot transform the posts of " + Quote(a.path) + " to WGS84: " + LastGdalMessage());
+      PostPositions(a, w, g);
       g.IndexPositions();
       out.grids.push_back(std::move(g));
     }

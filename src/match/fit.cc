@@ -136,12 +136,16 @@ struct AllColumnsCost {
   const std::vector<Column>* cols;
   const std::vector<double>* sqrt_w;
   const HorizonLookup* horizon;
+  bool fit_k1;  // false: k1 is held (the undistortion is skipped when it is 0)
   template <typename T>
   bool operator()(T const* const* params, T* residuals) const {
     const T* p = params[0];
     const Eigen::Matrix<T, 3, 3> m = CamFromEnuRad(p[0], p[1], p[2]);
+    const bool undistort = fit_k1 || ScalarOf(p[4]) != 0.0;
     for (size_t i = 0; i < cols->size(); ++i)
-      residuals[i] = ColumnResidual<T>(m, p[3], p[4], (*cols)[i], *horizon) * (*sqrt_w)[i];
+      residuals[i] = (undistort ? ColumnResidual<T>(m, p[3], p[4], (*cols)[i], *horizon)
+                                : ColumnResidual<T>(m, p[3], T(0.0), (*cols)[i], *horizon, false)) *
+                     (*sqrt_w)[i];
     return true;
   }
 };
@@ -171,8 +175,9 @@ Refined RefineLeastSquares(const Scorer& scorer, const std::vector<Column>& cols
       sqrt_w[i] = std::sqrt(loss.Weight(r) * scorer.InlierProbability(cols[i], r, scale));
     }
   };
-  auto* cost = new ceres::DynamicAutoDiffCostFunction<AllColumnsCost, 4>(
-      new AllColumnsCost{&cols, &sqrt_w, &scorer.horizon()});
+  // Stride 5: the derivatives of all five parameters in one pass.
+  auto* cost = new ceres::DynamicAutoDiffCostFunction<AllColumnsCost, 5>(
+      new AllColumnsCost{&cols, &sqrt_w, &scorer.horizon(), options.fit_k1});
   cost->AddParameterBlock(5);
   cost->SetNumResiduals(static_cast<int>(cols.size()));
   ceres::Problem problem;

@@ -95,10 +95,10 @@ struct Pose4 {
 // k1 (fixed-point inversion of x_d = x (1 + k1 r^2); converges for
 // |k1| r^2 < 0.3, far beyond any lens this is fitted to).
 template <typename T>
-void Undistorted(const Column& c, const T& f, const T& k1, T& xn, T& yn) {
+void Undistorted(const Column& c, const T& f, const T& k1, T& xn, T& yn, bool distorted = true) {
   const T xd = c.u / f, yd = c.v / f;
   xn = xd, yn = yd;
-  if (ScalarOf(k1) == 0.0 && std::is_same_v<T, double>) return;
+  if (!distorted || (ScalarOf(k1) == 0.0 && std::is_same_v<T, double>)) return;
   for (int it = 0; it < 6; ++it) {
     const T s = 1.0 + k1 * (xn * xn + yn * yn);
     xn = xd / s, yn = yd / s;
@@ -112,11 +112,11 @@ void Undistorted(const Column& c, const T& f, const T& k1, T& xn, T& yn) {
 // peaks leave it).
 template <typename T>
 T ColumnResidual(const Eigen::Matrix<T, 3, 3>& cam_from_enu, const T& f, const T& k1, const Column& c,
-                 const HorizonLookup& horizon) {
+                 const HorizonLookup& horizon, bool distorted = true) {
   using std::atan2;
   using std::sqrt;
   T xn, yn;
-  Undistorted(c, f, k1, xn, yn);
+  Undistorted(c, f, k1, xn, yn, distorted);
   const Eigen::Matrix<T, 3, 1> d = cam_from_enu.transpose() * Eigen::Matrix<T, 3, 1>(xn, yn, T(1.0));
   const T az = atan2(d.x(), d.y());
   const T el = atan2(d.z(), sqrt(d.x() * d.x() + d.y() * d.y()));

@@ -143,6 +143,11 @@ CameraIntrinsics FromOpenCv(const std::string& path, int image_width, int image_
 
 }  // namespace
 
+CameraIntrinsics CameraFromJson(const nlohmann::json& camera, int image_width, int image_height,
+                                const std::string& source) {
+  return FromPlainJson(source, camera, image_width, image_height);
+}
+
 CameraIntrinsics ReadCameraFile(const std::string& path, int image_width, int image_height) {
   std::ifstream in(path, std::ios::binary);
   if (!in) throw IoError("camera: cannot open '" + path + "'");

@@ -4,6 +4,7 @@
 // overlay, rendering and tracking.
 #pragma once
 
+#include <nlohmann/json_fwd.hpp>
 #include <string>
 
 #include "camera/camera.h"
@@ -28,6 +29,11 @@ namespace horizonreg {
 // error. Throws IoError when the file cannot be read, InvalidArgument naming
 // the file and the field when its content is wrong. Thread-safe.
 CameraIntrinsics ReadCameraFile(const std::string& path, int image_width, int image_height);
+
+// The plain JSON layout above, already parsed (e.g. the "camera" block of a
+// register JSON); `source` names it in errors.
+CameraIntrinsics CameraFromJson(const nlohmann::json& camera, int image_width, int image_height,
+                                const std::string& source);
 
 // DESIGN.md pixel coordinate of an OpenCV pixel coordinate (OpenCV: the
 // centre of the top-left pixel is (0, 0); here it is (0.5, 0.5)), and back.

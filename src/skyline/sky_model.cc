@@ -44,12 +44,9 @@ bool SkyModel::Refit(const LabPlanes& lab, const std::vector<int>& top, const cv
 bool SkyModel::FitMasked(const LabPlanes& lab, const std::vector<int>& top, const cv::Mat* dev, float max_dev,
                          int stride, float scale_floor) {
   const int w = lab.Rows(), h = lab.Cols();
-  struct Sample {
-    double t[kTerms];
-    double v[3];
-  };
-  std::vector<Sample> samples;
   const double sx = 1.0 / std::max(1, w - 1), sy = 1.0 / std::max(1, h - 1);
+  // The samples: design rows (the polynomial's terms) and colours.
+  std::vector<std::array<double, kTerms + 3>> rows_in;
   for (int c = 0; c < w; c += stride) {
     const float* l = lab.l.ptr<float>(c);
     const float* a = lab.a.ptr<float>(c);
@@ -57,47 +54,46 @@ bool SkyModel::FitMasked(const LabPlanes& lab, const std::vector<int>& top, cons
     const float* d = dev ? dev->ptr<float>(c) : nullptr;
     for (int r = 0; r < std::min(top[c], h); r += stride) {
       if (d && !(d[r] < max_dev)) continue;
-      Sample s;
-      Terms(c * sx - 0.5, r * sy, s.t);
-      s.v[0] = l[r], s.v[1] = a[r], s.v[2] = b[r];
-      samples.push_back(s);
+      std::array<double, kTerms + 3> row;
+      Terms(c * sx - 0.5, r * sy, row.data());
+      row[kTerms] = l[r], row[kTerms + 1] = a[r], row[kTerms + 2] = b[r];
+      rows_in.push_back(row);
     }
   }
-  if (samples.size() < 64) return false;
-  std::vector<double> weight(samples.size(), 1.0), residual(samples.size(), 0.0);
+  const Eigen::Index n = static_cast<Eigen::Index>(rows_in.size());
+  if (n < 64) return false;
+  Eigen::Matrix<double, Eigen::Dynamic, kTerms> design(n, kTerms);
+  Eigen::Matrix<double, Eigen::Dynamic, 3> colour(n, 3);
+  for (Eigen::Index i = 0; i < n; ++i) {
+    for (int k = 0; k < kTerms; ++k) design(i, k) = rows_in[i][k];
+    for (int ch = 0; ch < 3; ++ch) colour(i, ch) = rows_in[i][kTerms + ch];
+  }
+  Eigen::VectorXd weight = Eigen::VectorXd::Ones(n);
+  Eigen::Matrix<double, kTerms, 3> x;
   double scale = scale_floor;
   // Graduated: the first rounds weigh residuals against a wide scale (the
   // sky's own smooth variation stays in; snow and clouds, tens of delta E
   // off, mostly leave), then against 2.5 robust sigmas.
   constexpr double kWide[] = {12.0, 6.0};
-  for (int iter = 0; iter < 7; ++iter) {
-    Eigen::Matrix<double, kTerms, kTerms> ata = Eigen::Matrix<double, kTerms, kTerms>::Zero();
-    Eigen::Matrix<double, kTerms, 3> atb = Eigen::Matrix<double, kTerms, 3>::Zero();
-    for (size_t i = 0; i < samples.size(); ++i) {
-      const Eigen::Map<const Eigen::Matrix<double, kTerms, 1>> t(samples[i].t);
-      ata.noalias() += weight[i] * t * t.transpose();
-      for (int ch = 0; ch < 3; ++ch) atb.col(ch) += weight[i] * samples[i].v[ch] * t;
-    }
+  std::vector<double> residual(n);
+  for (int iter = 0; iter < 6; ++iter) {
+    const Eigen::Matrix<double, Eigen::Dynamic, kTerms> weighted = weight.asDiagonal() * design;
+    Eigen::Matrix<double, kTerms, kTerms> ata = design.transpose() * weighted;
+    const Eigen::Matrix<double, kTerms, 3> atb = weighted.transpose() * colour;
     ata.diagonal().array() += 1e-6 * ata.diagonal().maxCoeff();  // a thin band cannot pin the cubic terms
-    const Eigen::Matrix<double, kTerms, 3> x = ata.ldlt().solve(atb);
-    for (int ch = 0; ch < 3; ++ch)
-      for (int k = 0; k < kTerms; ++k) coef_[ch][k] = x(k, ch);
-    for (size_t i = 0; i < samples.size(); ++i) {
-      double d2 = 0.0;
-      for (int ch = 0; ch < 3; ++ch) {
-        double p = 0.0;
-        for (int k = 0; k < kTerms; ++k) p += coef_[ch][k] * samples[i].t[k];
-        d2 += (samples[i].v[ch] - p) * (samples[i].v[ch] - p);
-      }
-      residual[i] = std::sqrt(d2);
-    }
-    scale = std::max<double>(scale_floor, 1.4826 * MedianOf(residual));
+    x = ata.ldlt().solve(atb);
+    const Eigen::Matrix<double, Eigen::Dynamic, 3> r = colour - design * x;
+    for (Eigen::Index i = 0; i < n; ++i) residual[i] = r.row(i).norm();
+    std::vector<double> sorted = residual;
+    scale = std::max<double>(scale_floor, 1.4826 * MedianOf(std::move(sorted)));
     const double width = iter < 2 ? kWide[iter] : 2.5 * scale;
-    for (size_t i = 0; i < samples.size(); ++i) {
+    for (Eigen::Index i = 0; i < n; ++i) {
       const double z = residual[i] / width;
       weight[i] = 1.0 / (1.0 + z * z);
     }
   }
+  for (int ch = 0; ch < 3; ++ch)
+    for (int k = 0; k < kTerms; ++k) coef_[ch][k] = x(k, ch);
   scale_ = static_cast<float>(scale);
   fitted_ = true;
   return true;

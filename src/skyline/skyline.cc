@@ -397,7 +397,9 @@ std::vector<int> SolveUnary(const cv::Mat& unary, double smoothness, double slop
 HR_VECTOR_CLONES void PersistentSteps(const LabPlanes& lab, int k, cv::Mat& out) {
   const int w = lab.Rows(), h = lab.Cols();
   out.create(w, h + 1, CV_32F);
-  std::vector<float> cl(h + 1), ca(h + 1), cb(h + 1);
+  out.setTo(0.0f);
+  if (h < 2 * k + 2) return;
+  std::vector<float> cl(h + 1), ca(h + 1), cb(h + 1), plain(h + 1), trend(h + 1);
   const float inv_k = 1.0f / static_cast<float>(k);
   for (int c = 0; c < w; ++c) {
     const float* l = lab.l.ptr<float>(c);
@@ -405,22 +407,32 @@ HR_VECTOR_CLONES void PersistentSteps(const LabPlanes& lab, int k, cv::Mat& out)
     const float* b = lab.b.ptr<float>(c);
     cl[0] = ca[0] = cb[0] = 0.0f;
     for (int r = 0; r < h; ++r) cl[r + 1] = cl[r] + l[r], ca[r + 1] = ca[r] + a[r], cb[r + 1] = cb[r] + b[r];
+    // Means of the k rows above (u), below (d) and the k before those (v):
+    // the plain step |d - u| and the step against the trend |d - (2u - v)|.
+    const int end = h - k;  // y + k <= h
+    for (int y = k; y <= end; ++y) {
+      const float ul = cl[y] - cl[y - k], ua = ca[y] - ca[y - k], ub = cb[y] - cb[y - k];
+      const float dl = cl[y + k] - cl[y], da = ca[y + k] - ca[y], db = cb[y + k] - cb[y];
+      plain[y] = inv_k * std::sqrt((dl - ul) * (dl - ul) + (da - ua) * (da - ua) + (db - ub) * (db - ub));
+    }
+    for (int y = 2 * k; y <= end; ++y) {
+      const float ul = cl[y] - cl[y - k], ua = ca[y] - ca[y - k], ub = cb[y] - cb[y - k];
+      const float vl = cl[y - k] - cl[y - 2 * k], va = ca[y - k] - ca[y - 2 * k], vb = cb[y - k] - cb[y - 2 * k];
+      const float el = cl[y + k] - cl[y] - 2 * ul + vl, ea = ca[y + k] - ca[y] - 2 * ua + va,
+                  eb = cb[y + k] - cb[y] - 2 * ub + vb;
+      trend[y] = inv_k * std::sqrt(el * el + ea * ea + eb * eb);
+    }
+    for (int y = k; y < 2 * k && y <= end; ++y) trend[y] = plain[y];
     float* o = out.ptr<float>(c);
-    std::fill(o, o + h + 1, 0.0f);
-    for (int y = k; y + k <= h; ++y) {
-      const float ul = (cl[y] - cl[y - k]) * inv_k, ua = (ca[y] - ca[y - k]) * inv_k, ub = (cb[y] - cb[y - k]) * inv_k;
-      const float dl = (cl[y + k] - cl[y]) * inv_k, da = (ca[y + k] - ca[y]) * inv_k, db = (cb[y + k] - cb[y]) * inv_k;
-      float step = std::sqrt((dl - ul) * (dl - ul) + (da - ua) * (da - ua) + (db - ub) * (db - ub));
-      if (y >= 2 * k) {
-        const float vl = (cl[y - k] - cl[y - 2 * k]) * inv_k, va = (ca[y - k] - ca[y - 2 * k]) * inv_k,
-                    vb = (cb[y - k] - cb[y - 2 * k]) * inv_k;
-        const float el = dl - (2 * ul - vl), ea = da - (2 * ua - va), eb = db - (2 * ub - vb);
-        step = std::min(step, std::sqrt(el * el + ea * ea + eb * eb));
-      }
-      // b of the rows past the transition
-      const int b0 = std::min(y + 2, h - k), b1 = b0 + k;
-      const float below_b = (cb[b1] - cb[b0]) * inv_k;
-      o[y] = step * (1.0f - Logistic((kDeepBlueB - below_b) * (1.0f / 3)));
+    // b of the k rows past the transition (2 rows below y), clamped at the bottom.
+    const int last = end - 2;
+    for (int y = k; y <= std::min(end, last); ++y) {
+      const float below_b = (cb[y + 2 + k] - cb[y + 2]) * inv_k;
+      o[y] = std::min(plain[y], trend[y]) * (1.0f - Logistic((kDeepBlueB - below_b) * (1.0f / 3)));
+    }
+    for (int y = std::max(k, last + 1); y <= end; ++y) {
+      const float below_b = (cb[h] - cb[h - k]) * inv_k;
+      o[y] = std::min(plain[y], trend[y]) * (1.0f - Logistic((kDeepBlueB - below_b) * (1.0f / 3)));
     }
   }
 }
@@ -457,6 +469,25 @@ std::vector<int> TopmostEdge(const cv::Mat& steps, double smoothness, double slo
     }
   }
   return SolveUnary(unary, smoothness, slope, acc);
+}
+
+// Sky probability times (1 - veto): the veto is near 1 where a pixel departs
+// from the sky model by more than kSkyModelVeto sigmas but less than
+// kSubtleDeltaE, unless saturated blue.
+HR_VECTOR_CLONES void VetoSubtleDepartures(const cv::Mat& deviation, const LabPlanes& lab, float sky_scale,
+                                           cv::Mat& sky) {
+  const int w = sky.rows, h = sky.cols;
+  for (int c = 0; c < w; ++c) {
+    const float* dev = deviation.ptr<float>(c);
+    const float* b = lab.b.ptr<float>(c);
+    float* s = sky.ptr<float>(c);
+    for (int r = 0; r < h; ++r) {
+      const float off = Logistic((dev[r] - kSkyModelVeto) * 2.0f) *
+                        Logistic((kSubtleDeltaE - dev[r] * sky_scale) * (1.0f / 1.5f)) *
+                        (1.0f - Logistic((kDeepBlueB - b[r]) * (1.0f / 3)));
+      s[r] *= 1.0f - off;
+    }
+  }
 }
 
 constexpr int kMaxBoxFactor = 257;  // BoxReduce's column sums of k bytes fit 16 bits
@@ -632,18 +663,7 @@ Skyline ExtractSkyline(const cv::Mat& image, const SkylineOptions& options) {
   // bins) mark terrain: a hazy far ridge a few delta E off a pale sky.
   // Larger departures (clouds, snow, rock) are left to the histograms and
   // their context; saturated blue (a deep sky band) is always sky.
-  const float sky_scale = sky_model.scale();
-  for (int c = 0; c < ww; ++c) {
-    const float* dev = ws.deviation.ptr<float>(c);
-    const float* b = work_t.b.ptr<float>(c);
-    float* sky = ws.sky.ptr<float>(c);
-    for (int r = 0; r < wh; ++r) {
-      const float off = Logistic((dev[r] - kSkyModelVeto) * 2.0f) *
-                        Logistic((kSubtleDeltaE - dev[r] * sky_scale) * (1.0f / 1.5f)) *
-                        (1.0f - Logistic((kDeepBlueB - b[r]) * (1.0f / 3)));
-      sky[r] *= 1.0f - off;
-    }
-  }
+  VetoSubtleDepartures(ws.deviation, work_t, sky_model.scale(), ws.sky);
   EdgeAbovePenalty(ws.steps, ws.sky, work_t, ws.pen);
   boundary = SolveBoundary(ws.sky, ws.steps, ws.pen, options.smoothness, options.edge_weight, slope, ws.acc);
 

@@ -138,16 +138,22 @@ Tracker::Tracker(const HorizonProfile& horizon, int width, int height, const Tra
     : horizon_(horizon), width_(width), height_(height), options_(options) {
   options_.Check();
   if (width < 8 || height < 8) throw InvalidArgument("Tracker: frame size must be at least 8 x 8");
+  if (options_.registration.known_intrinsics) {
+    lens_ = options_.registration.known_intrinsics->Resized(width, height);
+    focal_px_ = lens_->focal_px;
+  }
 }
 
 std::optional<Registration> Tracker::TrackAround(const cv::Mat& frame, const CameraPose& predicted, double focal_px) {
   CameraIntrinsics k = CameraIntrinsics::FromHfov(width_, height_, 50.0);
   k.focal_px = focal_px;
+  if (lens_) k = *lens_;
   const double scale = std::max(0.5, width_ / 1000.0);
   const Skyline s = BandSkyline(frame, PredictedSkyline(horizon_, predicted, k), options_.band_px * scale,
                                 options_.min_edge_contrast);
   RegistrationOptions o = options_.registration;
   o.min_inlier_fraction = options_.tracking_min_inlier_fraction;
+  o.known_intrinsics = lens_;
   Registration r = RefinePose(s, horizon_, predicted, k.focal_px, true, o);
   if (!r.registered) return std::nullopt;
   // A jump the band could not have produced means the fit slid elsewhere.
@@ -198,10 +204,7 @@ std::optional<FramePose> Tracker::SensorPose(int index, const SensorReading& raw
 
 std::optional<Registration> Tracker::RegisterFull(const cv::Mat& frame, const std::optional<SensorReading>& prior) {
   RegistrationOptions o = options_.registration;
-  if (focal_px_) {  // the lens does not change during a video
-    const double hfov = HfovFromFocalDeg(*focal_px_, width_);
-    o.min_hfov_deg = hfov * 0.99, o.max_hfov_deg = hfov * 1.01;
-  }
+  o.known_intrinsics = lens_;  // the lens does not change during a video
   if (prior) {
     o.prior.compass_deg = prior->compass_deg;
     o.prior.pitch_deg = prior->pitch_deg;
@@ -254,6 +257,7 @@ FramePose Tracker::Process(const cv::Mat& frame_in, int index, const std::option
       velocity_ = {};
     }
     if (!focal_px_) focal_px_ = out.focal_px;
+    if (!lens_) lens_ = r->Intrinsics(width_, height_);
     last_visual_ = out;
     frames_since_visual_ = 0;
     if (raw) {

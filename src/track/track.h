@@ -65,6 +65,10 @@ class Tracker {
   std::optional<FramePose> SensorPose(int index, const SensorReading& raw, double time_s) const;
 
   void SetCalibration(const SensorCalibration& c) { calibration_ = c; }
+  // The camera: the known intrinsics given in the options, else the lens the
+  // first visual registration fitted (focal length, k1), kept for the rest
+  // of the video (a lens does not change); nullopt before that.
+  const std::optional<CameraIntrinsics>& lens() const { return lens_; }
   const std::optional<SensorCalibration>& calibration() const { return calibration_; }
 
  private:
@@ -79,6 +83,7 @@ class Tracker {
   CameraPose velocity_;  // per frame
   int frames_since_visual_ = 0;
   std::optional<double> focal_px_;
+  std::optional<CameraIntrinsics> lens_;
   std::optional<FramePose> last_;
   SensorCalibrator calibrator_;
   std::optional<SensorCalibration> calibration_;
