@@ -91,7 +91,7 @@ class HorizonAccumulator {
 
   void MergeFrom(const HorizonAccumulator& other) {
     for (size_t i = 0; i < best_.size(); ++i)
-      if (other.best_[i].tan_el > best_[i].tan_el) best_[i] = other.best_[i];
+      if (Better(other.best_[i], best_[i])) best_[i] = other.best_[i];
   }
   struct Best {
     double tan_el = -std::numeric_limits<double>::infinity();
@@ -101,8 +101,14 @@ class HorizonAccumulator {
 
  private:
   void Update(int s, const SweepPoint& x) {
-    Best& b = best_[s];
-    if (x.tan_el > b.tan_el) b = {x.tan_el, x.d, x.e, x.n, x.u, x.h};
+    const Best c{x.tan_el, x.d, x.e, x.n, x.u, x.h};
+    if (Better(c, best_[s])) best_[s] = c;
+  }
+  // Higher, and at equal height nearer: an order that does not depend on
+  // which thread saw which point first.
+  static bool Better(const Best& a, const Best& b) {
+    return a.tan_el > b.tan_el || (a.tan_el == b.tan_el && a.tan_el > -std::numeric_limits<double>::infinity() &&
+                                   (a.d < b.d || (a.d == b.d && (a.e < b.e || (a.e == b.e && a.n < b.n)))));
   }
   bool IsAdjacent(int s1, int s2) const {
     const int diff = std::abs(s1 - s2);
@@ -239,7 +245,7 @@ HorizonProfile ComputeHorizon(const TerrainWindow& terrain, const GeodeticPoint&
   const int n = options.NumBins();
   const SweepSetup setup =
       internal::MakeSweepSetup(n, 0.5, options.min_distance_m, options.max_distance_m, options.refraction);
-  auto accs = internal::SweepGrids<HorizonAccumulator>(terrain.grids, frame, setup, options.num_threads,
+  auto accs = internal::SweepGrids<HorizonAccumulator>(terrain.grids, frame, setup, options.pool, options.num_threads,
                                                        [&] { return HorizonAccumulator(setup); });
   for (size_t i = 1; i < accs.size(); ++i) accs[0].MergeFrom(accs[i]);
 

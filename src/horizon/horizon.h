@@ -8,6 +8,7 @@
 
 #include "dem/terrain.h"
 #include "geo/geodesy.h"
+#include "util/thread_pool.h"
 
 namespace horizonreg {
 
@@ -16,7 +17,8 @@ struct HorizonOptions {
   double max_distance_m = 100'000.0;       // Terrain farther than this (ground distance) is ignored.
   double min_distance_m = 0.5;             // Posts nearer than this (the observer's own post) are ignored.
   double refraction = kDefaultRefraction;  // k of the lift k d^2 / (2 R); 0 = pure geometry, in [-1, 1].
-  int num_threads = 2;                     // Threads for the post/edge pass, >= 1.
+  int num_threads = 2;                     // Threads for the post/edge pass, >= 1 (when no pool is given).
+  ThreadPool* pool = nullptr;              // A shared pool to run on instead (then num_threads is unused).
   void Check() const;                      // Throws InvalidArgument naming the field.
   int NumBins() const;
 };

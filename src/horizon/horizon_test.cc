@@ -145,6 +145,21 @@ TEST(ComputeHorizon, ThreadCountDoesNotChangeTheResult) {
   const HorizonProfile a = ComputeHorizon(w, {45.0, 7.0, 210.0}, one);
   const HorizonProfile b = ComputeHorizon(w, {45.0, 7.0, 210.0}, three);
   for (int i = 0; i < a.size(); ++i) EXPECT_EQ(a.elevation_deg[i], b.elevation_deg[i]);
+  // On a shared pool, also from inside another parallel loop (a batch of
+  // photos): the same horizon, distances and positions included.
+  ThreadPool pool(2);
+  HorizonOptions shared;
+  shared.pool = &pool;
+  std::vector<HorizonProfile> nested(3);
+  pool.ParallelFor(nested.size(), [&](size_t k, int) { nested[k] = ComputeHorizon(w, {45.0, 7.0, 210.0}, shared); });
+  for (const HorizonProfile& c : nested)
+    for (int i = 0; i < a.size(); ++i) {
+      EXPECT_EQ(a.elevation_deg[i], c.elevation_deg[i]);
+      if (std::isfinite(a.distance_m[i])) {
+        EXPECT_EQ(a.distance_m[i], c.distance_m[i]);
+        EXPECT_EQ(a.lat_deg[i], c.lat_deg[i]);
+      }
+    }
 }
 
 TEST(ComputeRidges, FindsANearRidgeInFrontOfAHigherFarOne) {

@@ -47,7 +47,7 @@ std::vector<std::vector<Ridge>> ComputeRidges(const TerrainWindow& terrain, cons
   // Rays at bin centres: sector s lies between centre rays s and s + 1.
   const SweepSetup setup =
       internal::MakeSweepSetup(n, 0.0, options.min_distance_m, options.max_distance_m, options.refraction);
-  auto collectors = internal::SweepGrids<RayCollector>(terrain.grids, frame, setup, options.num_threads,
+  auto collectors = internal::SweepGrids<RayCollector>(terrain.grids, frame, setup, options.pool, options.num_threads,
                                                        [&] { return RayCollector(setup); });
   double spacing = 0.0;
   for (const DemGrid& g : terrain.grids) spacing = std::max(spacing, g.SpacingM());
@@ -57,7 +57,9 @@ std::vector<std::vector<Ridge>> ComputeRidges(const TerrainWindow& terrain, cons
   for (int i = 0; i < n; ++i) {
     ray.clear();
     for (auto& c : collectors) ray.insert(ray.end(), c.rays()[i].begin(), c.rays()[i].end());
-    std::sort(ray.begin(), ray.end(), [](const RaySample& a, const RaySample& b) { return a.d < b.d; });
+    std::sort(ray.begin(), ray.end(), [](const RaySample& a, const RaySample& b) {
+      return a.d < b.d || (a.d == b.d && a.tan_el < b.tan_el);
+    });
     // Visible local maxima: points above everything nearer, followed by terrain
     // that stays below them for a while.
     std::vector<Ridge> found;

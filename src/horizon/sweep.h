@@ -5,12 +5,13 @@
 
 #include <algorithm>
 #include <cmath>
-#include <thread>
+#include <optional>
 #include <vector>
 
 #include "dem/dem_grid.h"
 #include "geo/geodesy.h"
 #include "util/fast_math.h"
+#include "util/thread_pool.h"
 
 namespace horizonreg::internal {
 
@@ -249,33 +250,34 @@ bool CellRays(const SweepSetup& setup, const SweepPoint& a, const SweepPoint& b,
   return true;
 }
 
-// Runs a sweep over every grid on `num_threads` threads, each with its own
-// handler made by make_handler(); returns the handlers for merging.
+// Runs a sweep over every grid on `pool` (or on a pool of `num_threads`
+// made for the call when it is null), one handler per pool slot, made by
+// make_handler(); returns the handlers for merging. Rows go out in blocks,
+// so voids and far areas do not leave a thread idle; a handler first runs
+// the sparse pre-pass over the whole grid. The merged result must not
+// depend on which handler saw which block (handlers break ties by position,
+// not by order).
 template <typename Handler, typename Make>
 std::vector<Handler> SweepGrids(const std::vector<DemGrid>& grids, const LocalFrame& frame, const SweepSetup& setup,
-                                int num_threads, Make&& make_handler) {
+                                ThreadPool* pool, int num_threads, Make&& make_handler) {
+  std::optional<ThreadPool> own;
+  if (!pool && num_threads > 1) pool = &own.emplace(num_threads);
+  const int slots = pool ? pool->size() : 1;
   std::vector<Handler> handlers;
-  for (int i = 0; i < num_threads; ++i) handlers.push_back(make_handler());
-  // Rows go to the threads in interleaved blocks, so voids and far areas
-  // do not leave one thread idle; each thread first runs the sparse pre-pass
-  // over the whole grid.
+  for (int i = 0; i < slots; ++i) handlers.push_back(make_handler());
   constexpr int kBlockRows = 32;
   for (const DemGrid& grid : grids) {
     if (grid.width < 2 || grid.height < 2) continue;
-    const int threads = std::max(1, std::min(num_threads, (grid.height + kBlockRows - 1) / kBlockRows));
-    auto work = [&](int t) {
-      SweepRows(grid, frame, setup, 0, grid.height, true, handlers[t]);
-      for (int r0 = t * kBlockRows; r0 < grid.height; r0 += threads * kBlockRows)
-        SweepRows(grid, frame, setup, r0, std::min(grid.height, r0 + kBlockRows), false, handlers[t]);
-    };
-    if (threads == 1) {
-      work(0);
-      continue;
-    }
-    std::vector<std::thread> pool;
-    for (int t = 1; t < threads; ++t) pool.emplace_back(work, t);
-    work(0);
-    for (auto& th : pool) th.join();
+    const int blocks = (grid.height + kBlockRows - 1) / kBlockRows;
+    std::vector<char> primed(slots, 0);
+    ParallelFor(pool, static_cast<size_t>(blocks), [&](size_t b, int t) {
+      if (!primed[t]) {
+        SweepRows(grid, frame, setup, 0, grid.height, true, handlers[t]);
+        primed[t] = 1;
+      }
+      const int r0 = static_cast<int>(b) * kBlockRows;
+      SweepRows(grid, frame, setup, r0, std::min(grid.height, r0 + kBlockRows), false, handlers[t]);
+    });
   }
   return handlers;
 }

@@ -6,7 +6,7 @@
 #include <cmath>
 #include <numeric>
 #include <sstream>
-#include <thread>
+#include <tuple>
 
 #include "geo/geodesy.h"
 #include "match/extrema.h"
@@ -103,20 +103,6 @@ CameraIntrinsics Registration::Intrinsics(int width, int height) const {
 
 namespace {
 
-// Calls fn(i, t) for every i in [0, n): item i on worker t = i mod W, with
-// W = min(n, max_workers) threads (the caller's among them); waits for all.
-template <typename Fn>
-void ParallelFor(size_t n, int max_workers, Fn fn) {
-  const int workers = static_cast<int>(std::clamp<size_t>(n, 1, max_workers));
-  auto work = [&](int t) {
-    for (size_t i = t; i < n; i += workers) fn(i, t);
-  };
-  std::vector<std::thread> pool;
-  for (int t = 1; t < workers; ++t) pool.emplace_back(work, t);
-  work(0);
-  for (std::thread& th : pool) th.join();
-}
-
 // The skyline in the fitting's coordinates: offsets from the principal
 // point, lens distortion removed when the lens is known (then in pixels of
 // focal length fx), as observed otherwise (principal point at the centre).
@@ -202,6 +188,17 @@ struct Candidate {
   double inliers = 0.0;  // share of the columns inside the gate
   double misfit = INFINITY;  // Scorer::Misfit
 };
+
+// Cheaper first; equal costs by the pose, so that the order never depends
+// on the order in which threads found the candidates.
+bool ByCost(const Candidate& x, const Candidate& y) {
+  if (x.cost != y.cost) return x.cost < y.cost;
+  return std::tie(x.pose.yaw, x.pose.pitch, x.pose.roll, x.pose.f) <
+         std::tie(y.pose.yaw, y.pose.pitch, y.pose.roll, y.pose.f);
+}
+// Hypotheses kept after scoring (the refinement draws its distinct
+// candidates from these).
+constexpr size_t kKeptHypotheses = 64;
 
 bool SamePose(const Pose4& a, const Pose4& b, double width) {
   const double hfov = 2.0 * std::atan(0.5 * width / a.f);
@@ -400,6 +397,9 @@ Registration Register(const Skyline& skyline, const HorizonProfile& horizon, con
   const double tau = options.inlier_px * px_scale;
   Registration out;
   const ImageFrame frame(skyline, options.known_intrinsics);
+  std::optional<ThreadPool> own_pool;
+  ThreadPool* threads = options.pool;
+  if (!threads && options.num_threads > 1) threads = &own_pool.emplace(options.num_threads);
 
   std::vector<Column> all = VisibleColumns(skyline, frame);
   const double visible = static_cast<double>(all.size()) / width;
@@ -474,10 +474,11 @@ Registration Register(const Skyline& skyline, const HorizonProfile& horizon, con
       if (img[b].position - img[a].position >= min_sep && img_uv[a] && img_uv[b]) pairs.push_back({a, b});
   struct Scored {
     std::vector<Candidate> candidates;
+    double bound = INFINITY;  // the 64th best cost at the last pruning: an upper bound of the 64th best
     int hypotheses = 0;
   };
-  std::vector<Scored> parts(options.num_threads);
-  ParallelFor(pairs.size(), options.num_threads, [&](size_t k, int t) {
+  std::vector<Scored> parts(threads ? threads->size() : 1);
+  ParallelFor(threads, pairs.size(), [&](size_t k, int t) {
     Scored& result = parts[t];
     std::vector<Candidate>& scored = result.candidates;
     const Extremum &ia = img[pairs[k].a], &ib = img[pairs[k].b];
@@ -505,14 +506,13 @@ Registration Register(const Skyline& skyline, const HorizonProfile& horizon, con
           if (!WithinPrior(options, h->pose)) continue;
           ++result.hypotheses;
           const Pose4 pose = Pose4::From(h->pose, frame.known() ? frame.KnownFocalPx() : h->focal_px);
-          const double bound = scored.size() >= 64 ? scored[63].cost : INFINITY;
-          const double cost = scorer.Cost(pose, coarse, bound);
+          const double cost = scorer.Cost(pose, coarse, result.bound);
           if (!std::isfinite(cost)) continue;
           scored.push_back({pose, cost});
           if (scored.size() >= 256) {  // keep the best 64
-            std::partial_sort(scored.begin(), scored.begin() + 64, scored.end(),
-                              [](const Candidate& x, const Candidate& y) { return x.cost < y.cost; });
-            scored.resize(64);
+            std::partial_sort(scored.begin(), scored.begin() + kKeptHypotheses, scored.end(), ByCost);
+            scored.resize(kKeptHypotheses);
+            result.bound = scored.back().cost;
           }
         }
       }
@@ -523,7 +523,10 @@ Registration Register(const Skyline& skyline, const HorizonProfile& horizon, con
     out.hypotheses += part.hypotheses;
     scored.insert(scored.end(), part.candidates.begin(), part.candidates.end());
   }
-  std::sort(scored.begin(), scored.end(), [](const Candidate& x, const Candidate& y) { return x.cost < y.cost; });
+  // The best 64 overall, ties broken by the pose: the same list whichever
+  // thread scored which pair.
+  std::sort(scored.begin(), scored.end(), ByCost);
+  if (scored.size() > kKeptHypotheses) scored.resize(kKeptHypotheses);
   if (scored.empty()) {
     out.message = "no hypothesis within the opening-angle range and priors";
     return out;
@@ -548,7 +551,7 @@ Registration Register(const Skyline& skyline, const HorizonProfile& horizon, con
         fresh.push_back(c);
     }
     std::vector<PaperCorrection> corr(fresh.size());
-    ParallelFor(fresh.size(), options.num_threads, [&](size_t i, int) {
+    ParallelFor(threads, fresh.size(), [&](size_t i, int) {
       Candidate& c = fresh[i];
       PaperCorrection pc = CorrectLinear(scorer, quick, c.pose, width, tau);
       if (frame.known()) pc.pose.f = c.pose.f;
@@ -566,7 +569,7 @@ Registration Register(const Skyline& skyline, const HorizonProfile& horizon, con
   std::vector<PaperCorrection> corrections;
   auto refine_pool = [&](size_t from, size_t to) {
     std::vector<std::optional<Candidate>> slots(to - from);
-    ParallelFor(to - from, options.num_threads, [&](size_t k, int) {
+    ParallelFor(threads, to - from, [&](size_t k, int) {
       const Candidate& c = pool[from + k];
       std::vector<Column> cols = quick;  // weighted for this candidate's pose
       scorer.Reweight(c.pose, cols);

@@ -11,6 +11,7 @@
 #include "camera/camera.h"
 #include "horizon/horizon.h"
 #include "skyline/skyline.h"
+#include "util/thread_pool.h"
 
 namespace horizonreg {
 
@@ -74,6 +75,7 @@ struct RegistrationOptions {
   double outlier_share = 0.25;  // prior share of misread columns in the robust fit, in (0, 1)
   DemErrorModel dem_error;
   int num_threads = 2;  // Threads scoring and refining hypotheses, >= 1 (same result for any count).
+  ThreadPool* pool = nullptr;  // A shared pool to run on instead (then num_threads is unused; same result).
   // The no-match decision (a wrong pose reported as registered is the worst outcome):
   double min_visible_fraction = 0.15;      // of the image columns with a skyline value
   double min_informative_fraction = 0.3;   // of the width: columns whose tolerance lets them inform (near terrain

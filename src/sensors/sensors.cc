@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <exiv2/exiv2.hpp>
+#include <mutex>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <sstream>
@@ -79,6 +80,12 @@ std::optional<double> Dms(const Exiv2::ExifData& exif, const char* key, const ch
 }  // namespace
 
 SensorReading ReadExif(const std::string& image_path) {
+  // exiv2 writes its warnings (e.g. "IFD exceeds data buffer" on ordinary
+  // Nikon JPEGs) to stderr itself; they never reach our user: its
+  // process-wide log level is set to mute, once. A tag it could not read is
+  // simply absent.
+  static std::once_flag mute_exiv2;
+  std::call_once(mute_exiv2, [] { Exiv2::LogMsg::setLevel(Exiv2::LogMsg::mute); });
   SensorReading r;
   try {
     auto image = Exiv2::ImageFactory::open(image_path);
