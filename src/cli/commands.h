@@ -50,6 +50,19 @@ struct RegisterArgs {
 void AddRegisterCommand(CLI::App& app, RegisterArgs& args);
 int RunRegister(const RegisterArgs& args);
 
+struct BatchArgs {
+  std::string manifest, dem_dir, stations, output, csv, overlay_dir, landmarks, hfov_range;
+  std::vector<std::string> dem;
+  std::optional<double> hfov;
+  std::optional<int> threads;
+  double refraction = kDefaultRefraction;
+  double max_distance = 100'000.0;
+  double step = 0.1;
+  bool pinhole = false, no_exif = false, no_progress = false, sea_level_fill = false;
+};
+void AddBatchCommand(CLI::App& app, BatchArgs& args);
+int RunBatch(const BatchArgs& args);
+
 struct OverlayArgs {
   std::string image, pose, landmarks, output, camera;
   std::vector<std::string> dem;

@@ -6,12 +6,11 @@
 #include <opencv2/core.hpp>
 #include <string>
 
+#include "pipeline/image_io.h"
+
 namespace horizonreg::cli {
 
-// Decodes an image file (JPEG, PNG, TIFF, ... as OpenCV reads them). Throws
-// IoError naming the file when it is missing, empty, truncated (a JPEG
-// without its end marker) or not a decodable image.
-cv::Mat ReadImage(const std::string& path);
+using horizonreg::ReadImage;  // pipeline/image_io.h
 
 // Encodes an image by the file's extension and writes it atomically.
 void WriteImage(const std::string& path, const cv::Mat& image);

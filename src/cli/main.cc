@@ -41,12 +41,14 @@ int main(int argc, char** argv) {
   cli::OverlayArgs overlay_args;
   cli::RenderArgs render_args;
   cli::TrackArgs track_args;
+  cli::BatchArgs batch_args;
   cli::AddHorizonCommand(app, horizon_args);
   cli::AddSkylineCommand(app, skyline_args);
   cli::AddRegisterCommand(app, register_args);
   cli::AddOverlayCommand(app, overlay_args);
   cli::AddRenderCommand(app, render_args);
   cli::AddTrackCommand(app, track_args);
+  cli::AddBatchCommand(app, batch_args);
   cli::AddDemoCommand(app, demo_args);
   if (const int code = cli::ParseOrExit(app, argc, argv); code >= 0) return code;
   if (app.got_subcommand("track")) return ExecTrack(argv);  // checked here, run there
@@ -56,6 +58,7 @@ int main(int argc, char** argv) {
     if (app.got_subcommand("register")) return cli::RunRegister(register_args);
     if (app.got_subcommand("overlay")) return cli::RunOverlay(overlay_args);
     if (app.got_subcommand("render")) return cli::RunRender(render_args);
+    if (app.got_subcommand("batch")) return cli::RunBatch(batch_args);
     if (app.got_subcommand("demo")) return cli::RunDemo(demo_args);
     std::cerr << "horizonreg: no command given (see --help)\n";
     return 2;

@@ -6,6 +6,8 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
+#include "util/json.h"
+
 namespace horizonreg::cli {
 
 // Writes `content` to `path` through a temporary file and a rename, so a
@@ -13,11 +15,6 @@ namespace horizonreg::cli {
 // IoError naming the file.
 void WriteOutput(const std::string& path, const std::string& content);
 
-// A JSON number rounded to `decimals`, or null for NaN / infinity.
-inline nlohmann::json Rounded(double v, int decimals) {
-  if (!std::isfinite(v)) return nullptr;
-  const double scale = std::pow(10.0, decimals);
-  return std::round(v * scale) / scale;
-}
+using horizonreg::Rounded;
 
 }  // namespace horizonreg::cli

@@ -22,7 +22,8 @@
 #include "overlay/overlay.h"
 #include "render/render.h"
 #include "skyline/skyline.h"
-#include "track/track.h"
+#include "pipeline/register_photo.h"
+#include "pipeline/site.h"
 #include "util/angles.h"
 #include "util/errors.h"
 
@@ -64,13 +65,13 @@ int RunDemo(const DemoArgs& a) {
     }
   const int col = static_cast<int>(low % g.width), row = static_cast<int>(low / g.width);
   const double lat = g.LatAt(col, row), lon = g.LonAt(col, row);
-  HorizonOptions options;
-  options.azimuth_step_deg = 0.1;  // as `register` uses
-  const GeodeticPoint observer = ResolveObserver(whole, lat, lon, std::nullopt, std::nullopt);
   const auto t1 = Clock::now();
-  const HorizonProfile profile = ComputeHorizon(whole, observer, options);
+  ThreadPool pool(2);
+  const Site site(whole, lat, lon, SiteOptions{}, &pool);  // the registration horizon, as `register` builds it
+  const GeodeticPoint& observer = site.observer();
+  const HorizonProfile& profile = site.horizon();
   const auto t2 = Clock::now();
-  const auto ridges = ComputeRidges(whole, observer, options, RidgeOptions{});
+  const auto& ridges = site.ridges();
 
   // The secret pose: the camera points where the horizon has relief (as a
   // photographer would), horizon in the upper part of the frame, some roll.
@@ -85,7 +86,7 @@ int RunDemo(const DemoArgs& a) {
   for (double az = 0.0; az < 360.0; az += 2.0) {
     double sum = 0.0, sum2 = 0.0;
     int n = 0;
-    for (double d = -hfov / 2; d <= hfov / 2; d += options.azimuth_step_deg) {
+    for (double d = -hfov / 2; d <= hfov / 2; d += profile.azimuth_step_deg) {
       const double e = profile.ElevationAtDeg(WrapAzimuthDeg(az + d));
       sum += e, sum2 += e * e, ++n;
     }
@@ -108,10 +109,9 @@ int RunDemo(const DemoArgs& a) {
 
   // Register the rendered photo as a user's photo: from the file, no prior.
   const cv::Mat photo = ReadImage(view_path);
-  const Skyline skyline = ExtractSkyline(photo, SkylineOptions{});
-  const auto t4 = Clock::now();
-  const Registration r = RegisterImage(photo, skyline, profile, RegistrationOptions{});
-  const auto t5 = Clock::now();
+  const PhotoRegistration registered = RegisterPhoto(site, photo, PhotoOptions{}, &pool);
+  const Registration& r = registered.registration;
+  const Skyline& skyline = registered.skyline;
 
   const std::string overlay_path = (std::filesystem::path(a.output_dir) / "demo_overlay.png").string();
   const std::string json_path = (std::filesystem::path(a.output_dir) / "demo_horizon.json").string();
@@ -152,7 +152,7 @@ int RunDemo(const DemoArgs& a) {
     std::printf("  recovered     no match: %s\n", r.message.c_str());
   }
   std::printf("  timing        load %.0f ms, horizon %.0f ms, render %.0f ms, skyline %.0f ms, match %.1f ms\n",
-              ms(t1 - t0), ms(t2 - t1), ms(t3 - t2), ms(t4 - t3), ms(t5 - t4));
+              ms(t1 - t0), ms(t2 - t1), ms(t3 - t2), registered.skyline_ms, registered.match_ms);
   std::printf("  wrote         %s\n                %s\n                %s\n", r.registered ? overlay_path.c_str() : "",
               png_path.c_str(), json_path.c_str());
   std::printf("  result        %s\n", ok ? "PASS: recovered pose within 0.3 deg of the secret one"

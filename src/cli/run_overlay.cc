@@ -6,7 +6,7 @@
 
 #include "cli/commands.h"
 #include "cli/image_io.h"
-#include "cli/site.h"
+#include "pipeline/site.h"
 #include "overlay/overlay.h"
 #include "pipeline/camera_file.h"
 #include "util/errors.h"
@@ -76,14 +76,11 @@ int RunOverlay(const OverlayArgs& a) {
   // The photo may be a resized copy of the registered one.
   const CameraIntrinsics k = a.camera.empty() ? p.intrinsics.Resized(image.cols, image.rows)
                                               : ReadCameraFile(a.camera, image.cols, image.rows);
-  const Site site = LoadSite(a.dem, p.lat, p.lon, std::nullopt, p.eye_height_m, 100'000.0);
-  HorizonOptions ho;
-  ho.azimuth_step_deg = 0.1;
-  const HorizonProfile horizon = ComputeHorizon(site.window, site.observer, ho);
-  std::vector<std::vector<Ridge>> ridges;
-  if (!a.no_ridges) ridges = ComputeRidges(site.window, site.observer, ho, RidgeOptions{});
-  OverlayInput in{&horizon, a.no_ridges ? nullptr : &ridges,
-                  OverlayLandmarks(site, horizon, a.landmarks, ho.refraction)};
+  SiteOptions so;
+  so.alt_m = p.eye_height_m;
+  ThreadPool pool(2);
+  const Site site(a.dem, p.lat, p.lon, so, &pool);
+  OverlayInput in{&site.horizon(), a.no_ridges ? nullptr : &site.ridges(), OverlayLandmarks(site, a.landmarks)};
   OverlayOptions o;
   o.eye_height_m = site.EyeAboveGroundM();
   WriteImage(a.output, DrawOverlay(image, p.pose, k, in, o).image);

@@ -6,7 +6,7 @@
 
 #include "cli/commands.h"
 #include "cli/image_io.h"
-#include "cli/site.h"
+#include "pipeline/site.h"
 #include "overlay/overlay.h"
 #include "pipeline/camera_file.h"
 #include "render/render.h"
@@ -54,17 +54,20 @@ int RunRender(const RenderArgs& a) {
   RenderOptions ro;
   ro.refraction = a.refraction;
   ro.Check();
-  const Site site = LoadSite(a.dem, a.lat, a.lon, a.agl, a.alt, ro.max_distance_m);
+  SiteOptions so;
+  so.agl_m = a.agl;
+  so.alt_m = a.alt;
+  so.refraction = a.refraction;
+  so.max_distance_m = ro.max_distance_m;
+  ThreadPool pool(2);
+  const Site site(a.dem, a.lat, a.lon, so, &pool);
   const CameraPose pose{WrapAzimuthDeg(a.azimuth), a.pitch, a.roll};
   const CameraIntrinsics k = a.camera.empty() ? CameraIntrinsics::FromHfov(w, h, a.hfov) : ReadCameraFile(a.camera, w, h);
-  cv::Mat view = RenderView(site.window, site.observer, pose, k, ro);
-  HorizonOptions ho;
-  ho.azimuth_step_deg = 0.1;
-  ho.refraction = a.refraction;
-  const HorizonProfile horizon = ComputeHorizon(site.window, site.observer, ho);
-  const auto landmarks = OverlayLandmarks(site, horizon, a.landmarks, a.refraction);
+  cv::Mat view = RenderView(site.window(), site.observer(), pose, k, ro);
+  const HorizonProfile& horizon = site.horizon();
+  const auto landmarks = OverlayLandmarks(site, a.landmarks);
   if (!a.no_overlay) {
-    const auto ridges = ComputeRidges(site.window, site.observer, ho, RidgeOptions{});
+    const auto& ridges = site.ridges();
     OverlayOptions o;
     o.eye_height_m = site.EyeAboveGroundM();
     o.caption = "predicted view (DEM render)";
@@ -74,7 +77,7 @@ int RunRender(const RenderArgs& a) {
     const auto [lo, hi] = std::minmax_element(horizon.elevation_deg.begin(), horizon.elevation_deg.end());
     const double min_el = std::max(-60.0, *lo - 3.0), max_el = std::min(80.0, *hi + 4.0);
     const int pw = 3600, ph = std::clamp(static_cast<int>(std::lround((max_el - min_el) * 10.0)), 120, 1800);
-    const cv::Mat pano = DrawPanoramaLabels(RenderPanorama(site.window, site.observer, pw, ph, min_el, max_el, ro),
+    const cv::Mat pano = DrawPanoramaLabels(RenderPanorama(site.window(), site.observer(), pw, ph, min_el, max_el, ro),
                                             min_el, max_el, landmarks);
     WriteImage(a.panorama, pano);
   }

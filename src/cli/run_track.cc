@@ -14,7 +14,7 @@
 
 #include "cli/commands.h"
 #include "cli/output.h"
-#include "cli/site.h"
+#include "pipeline/site.h"
 #include "overlay/overlay.h"
 #include "pipeline/camera_file.h"
 #include "track/track.h"
@@ -65,10 +65,12 @@ int RunTrack(const TrackArgs& a) {
   cv::Mat frame;
   if (!cap.read(frame) || frame.empty()) throw IoError("track: '" + a.input + "' has no readable frame");
 
-  const Site site = LoadSite(a.dem, a.lat, a.lon, a.agl, a.alt, 100'000.0);
-  HorizonOptions ho;
-  ho.azimuth_step_deg = 0.1;
-  const HorizonProfile horizon = ComputeHorizon(site.window, site.observer, ho);
+  SiteOptions so;
+  so.agl_m = a.agl;
+  so.alt_m = a.alt;
+  ThreadPool pool(2);
+  const Site site(a.dem, a.lat, a.lon, so, &pool);
+  const HorizonProfile& horizon = site.horizon();
   TrackerOptions to;
   if (!a.camera.empty()) to.registration.known_intrinsics = ReadCameraFile(a.camera, frame.cols, frame.rows);
   Tracker tracker(horizon, frame.cols, frame.rows, to);

@@ -351,6 +351,54 @@ GeodeticPoint Terrain::CenterOf(size_t i) const {
   return {y, x, 0.0};
 }
 
+GeoBox Terrain::ExtentOf(size_t i) const {
+  HR_CHECK(i < impl_->sources.size()) << "file index " << i;
+  const Source& s = impl_->sources[i];
+  GeoBox b{INFINITY, -INFINITY, INFINITY, -INFINITY};
+  constexpr int kSteps = 8;
+  for (int k = 0; k <= kSteps; ++k)
+    for (int side = 0; side < 4; ++side) {
+      const double t = static_cast<double>(k) / kSteps;
+      const double col = side < 2 ? t * (s.width - 1) : (side == 2 ? 0 : s.width - 1);
+      const double row = side < 2 ? (side == 0 ? 0 : s.height - 1) : t * (s.height - 1);
+      double x, y, z = 0;
+      GeoOfPixel(s, col, row, x, y);
+      if (!s.separable && !OCTTransform(static_cast<OGRCoordinateTransformationH>(s.to_wgs84.get()), 1, &x, &y, &z))
+        continue;
+      b.south = std::min(b.south, y), b.north = std::max(b.north, y);
+      b.west = std::min(b.west, x), b.east = std::max(b.east, x);
+    }
+  return b;
+}
+
+std::vector<std::string> Terrain::SourceFilesOf(size_t i) const {
+  HR_CHECK(i < impl_->sources.size()) << "file index " << i;
+  std::vector<std::string> out;
+  char** files = GDALGetFileList(static_cast<GDALDatasetH>(impl_->sources[i].dataset.get()));
+  for (char** f = files; f && *f; ++f) out.emplace_back(*f);
+  CSLDestroy(files);
+  return out;
+}
+
+void AddSeaLevel(TerrainWindow& window, const GeodeticPoint& center, double radius_m) {
+  // A flat surface: 0.005 deg posts (about 500 m) are exact under bilinear
+  // interpolation and cheap to sweep.
+  const double spacing = 0.005;
+  const double dlat = radius_m / 111'000.0 + 2 * spacing;
+  const double dlon = std::min(180.0, dlat / std::max(0.01, std::cos(DegToRad(center.lat_deg))));
+  DemGrid g;
+  g.separable = true;
+  g.lat0_deg = std::min(90.0, center.lat_deg + dlat);
+  g.dlat_deg = -spacing;
+  g.lon0_deg = center.lon_deg - dlon;
+  g.dlon_deg = spacing;
+  g.height = static_cast<int>(std::ceil((g.lat0_deg - std::max(-90.0, center.lat_deg - dlat)) / spacing)) + 1;
+  g.width = static_cast<int>(std::ceil(2 * dlon / spacing)) + 1;
+  g.height_m.assign(static_cast<size_t>(g.width) * g.height, 0.0f);
+  g.source = "sea level";
+  window.grids.push_back(std::move(g));
+}
+
 namespace {
 
 // Transforms n points (x, y) in place from the file's CRS to WGS84 (lon, lat).

@@ -42,6 +42,11 @@ struct TerrainWindow {
   std::optional<double> HeightAt(double lat_deg, double lon_deg) const;
 };
 
+// A WGS84 bounding box, degrees (east may exceed 180 for a box across the antimeridian).
+struct GeoBox {
+  double south = 0.0, north = 0.0, west = 0.0, east = 0.0;
+};
+
 class Terrain {
  public:
   // Opens every file (metadata only; heights are read by ReadWindow).
@@ -63,10 +68,20 @@ class Terrain {
   // WGS84 position of the centre post of file i (0 <= i < paths().size()).
   GeodeticPoint CenterOf(size_t i) const;
   const std::vector<std::string>& paths() const;
+  // WGS84 bounding box of file i's posts (corners and edge points transformed).
+  GeoBox ExtentOf(size_t i) const;
+  // The files a dataset is made of beside file i itself (a VRT's sources), as GDAL lists them.
+  std::vector<std::string> SourceFilesOf(size_t i) const;
 
  private:
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };
+
+// Sea-level fill: adds a grid of 0 m heights covering `radius_m` around
+// `center` (last, so every file's data wins in HeightAt and the horizon takes
+// the maximum over grids): the sea where no file has data, e.g. the missing
+// SRTM tiles off a coast. Land below sea level would read as sea.
+void AddSeaLevel(TerrainWindow& window, const GeodeticPoint& center, double radius_m);
 
 }  // namespace horizonreg

@@ -6,6 +6,9 @@
 #include <opencv2/core.hpp>
 #include <sstream>
 
+#include "match/predicted.h"
+#include "pipeline/register_photo.h"
+#include "skyline/band.h"
 #include "util/angles.h"
 #include "util/errors.h"
 
@@ -33,106 +36,6 @@ const char* PoseSourceName(PoseSource s) {
   }
   return "none";
 }
-
-std::vector<double> PredictedSkyline(const HorizonProfile& horizon, const CameraPose& pose, const CameraIntrinsics& k) {
-  std::vector<double> y(k.width, NAN);
-  const Eigen::Matrix3d m = CamFromEnu(pose);
-  const double half = RadToDeg(std::atan(0.75 * std::hypot(k.width, k.height) / k.focal_px)) + 1.0;
-  const int n = horizon.size();
-  const int span = static_cast<int>(std::ceil(half / horizon.azimuth_step_deg));
-  const int centre = static_cast<int>(std::lround(pose.azimuth_deg / horizon.azimuth_step_deg));
-  std::optional<Eigen::Vector2d> prev;
-  for (int j = centre - span; j <= centre + span; ++j) {
-    const int b = ((j % n) + n) % n;
-    const auto p = ProjectAzEl(m, k, j * horizon.azimuth_step_deg, horizon.elevation_deg[b]);
-    if (p && prev && p->x() > prev->x()) {
-      const int c0 = std::max(0, static_cast<int>(std::ceil(prev->x() - 0.5)));
-      const int c1 = std::min(k.width - 1, static_cast<int>(std::floor(p->x() - 0.5)));
-      for (int c = c0; c <= c1; ++c) {
-        const double t = (c + 0.5 - prev->x()) / (p->x() - prev->x());
-        y[c] = prev->y() + t * (p->y() - prev->y());
-      }
-    }
-    prev = p;
-  }
-  return y;
-}
-
-namespace {
-
-// The boundary r in [lo, hi] (between rows r - 1 and r) with the highest
-// score(r), and its y refined to sub-pixel by a parabola through its
-// neighbours' scores. lo <= hi. `scores` is scratch space.
-struct Step {
-  int row;
-  double y, score;
-};
-template <typename Score>
-Step StrongestStep(int lo, int hi, Score score, std::vector<double>& scores) {
-  scores.assign(hi - lo + 1, 0.0);
-  int best = 0;
-  for (int r = lo; r <= hi; ++r) {
-    scores[r - lo] = score(r);
-    if (scores[r - lo] > scores[best]) best = r - lo;
-  }
-  double y = lo + best;
-  if (best > 0 && best + 1 < static_cast<int>(scores.size())) {
-    const double a = scores[best - 1], b = scores[best], d = scores[best + 1], denom = a - 2 * b + d;
-    if (denom < 0) y += std::clamp(0.5 * (a - d) / denom, -0.5, 0.5);
-  }
-  return {lo + best, y, scores[best]};
-}
-
-}  // namespace
-
-Skyline BandSkyline(const cv::Mat& frame, const std::vector<double>& predicted_y, double band_px, double min_contrast) {
-  HR_CHECK(frame.type() == CV_8UC3) << "BandSkyline needs 8-bit BGR";
-  HR_CHECK(static_cast<int>(predicted_y.size()) == frame.cols) << "one prediction per column";
-  Skyline s;
-  s.width = frame.cols;
-  s.height = frame.rows;
-  s.y.assign(frame.cols, NAN);
-  s.confidence.assign(frame.cols, 0.0);
-  const int h = frame.rows;
-  std::vector<int> sum;  // per row: B + G + R of this column
-  std::vector<double> scores;
-  for (int c = 0; c < frame.cols; ++c) {
-    const double p = predicted_y[c];
-    if (!std::isfinite(p)) continue;
-    const int lo = std::max(3, static_cast<int>(std::floor(p - band_px)));
-    const int hi = std::min(h - 3, static_cast<int>(std::ceil(p + band_px)));
-    if (hi - lo < 3) continue;
-    sum.resize(hi - lo + 6);
-    for (int r = lo - 3; r < hi + 3; ++r) {
-      const cv::Vec3b& v = frame.at<cv::Vec3b>(r, c);
-      sum[r - lo + 3] = v[0] + v[1] + v[2];
-    }
-    const auto [row, y, contrast] = StrongestStep(
-        lo, hi,
-        [&](int r) {  // mean of the three rows above against the three below
-          const int i = r - lo + 3;
-          return std::abs((sum[i - 1] + sum[i - 2] + sum[i - 3]) / 3.0 - (sum[i] + sum[i + 1] + sum[i + 2]) / 3.0);
-        },
-        scores);
-    if (contrast < min_contrast) continue;
-    s.y[c] = y;
-    s.confidence[c] = std::min(1.0, contrast / (4.0 * std::max(1.0, min_contrast)));
-  }
-  return s;
-}
-
-namespace {
-
-// 8-bit grey frames as BGR; anything else is returned as it is.
-cv::Mat AsBgr(const cv::Mat& frame) {
-  if (frame.type() != CV_8UC1) return frame;
-  const cv::Mat planes[3] = {frame, frame, frame};
-  cv::Mat bgr;
-  cv::merge(planes, 3, bgr);
-  return bgr;
-}
-
-}  // namespace
 
 Tracker::Tracker(const HorizonProfile& horizon, int width, int height, const TrackerOptions& options)
     : horizon_(horizon), width_(width), height_(height), options_(options) {
@@ -280,89 +183,6 @@ FramePose Tracker::Process(const cv::Mat& frame_in, int index, const std::option
   }
   if (out.source != PoseSource::kNone) last_ = out;
   return out;
-}
-
-std::optional<Registration> RecheckWithGuidedSkyline(const cv::Mat& image, const Skyline& skyline,
-                                                     const HorizonProfile& horizon, const Registration& first,
-                                                     const RegistrationOptions& options) {
-  // A near miss, not a guess: at most 0.2 short of the inlier share needed.
-  const double min_first_inliers = options.min_inlier_fraction - 0.2;
-  constexpr double kMinStep = 15.0;  // BGR distance of the 3-row means across the step (sky noise ~3)
-  constexpr double kMaxPoseMoveDeg = 0.2;
-  // The columns to re-read inflate the best pose's misfit, so its ambiguity
-  // ratio reads low; the search on the re-read skyline checks it again.
-  const double min_first_ambiguity = 0.85 * options.min_ambiguity_ratio;
-  const int w = skyline.width, h = skyline.height;
-  const double px_scale = ToleranceScale(w), tau = options.inlier_px * px_scale;
-  if (first.registered || !(first.focal_px > 0.0) || first.inlier_fraction < min_first_inliers ||
-      !(first.model_rms_px <= options.max_rms_px * px_scale) || first.ambiguity_ratio < min_first_ambiguity)
-    return std::nullopt;
-  const cv::Mat bgr = AsBgr(image);
-  if (bgr.type() != CV_8UC3 || bgr.cols != w || bgr.rows != h || static_cast<int>(skyline.y.size()) != w)
-    return std::nullopt;
-  const std::vector<double> pred = PredictedSkyline(horizon, first.pose, first.Intrinsics(w, h));
-  auto mean3 = [&](int r0, int c) {  // mean BGR of rows r0 .. r0 + 2
-    cv::Vec3d m(0, 0, 0);
-    for (int r = r0; r < r0 + 3; ++r) m += cv::Vec3d(bgr.at<cv::Vec3b>(r, c));
-    return m / 3.0;
-  };
-  Skyline guided = skyline;
-  int reread = 0;
-  std::vector<double> scores;
-  for (int c = 0; c < w; ++c) {
-    const double p = pred[c], y = skyline.y[c];
-    if (!std::isfinite(p) || !std::isfinite(y) || y - p <= tau) continue;  // fits, lies above, or is hidden
-    // Boundaries between rows r - 1 and r, above the extracted one.
-    const int lo = std::max(6, static_cast<int>(std::floor(p - 2 * tau)));
-    const int hi = std::min({h - 3, static_cast<int>(std::ceil(p + 2 * tau)), static_cast<int>(std::floor(y - tau))});
-    if (hi < lo) continue;
-    const auto [r, yr, contrast] = StrongestStep(
-        lo, hi, [&](int row) { return cv::norm(mean3(row, c) - mean3(row - 3, c)); }, scores);
-    if (contrast < kMinStep || cv::norm(mean3(r - 3, c) - mean3(r - 6, c)) > 0.5 * kMinStep) continue;
-    guided.y[c] = yr;
-    guided.confidence[c] = std::min(1.0, contrast / (4.0 * kMinStep));
-    ++reread;
-  }
-  // A few columns would only give the refit a second chance at the same
-  // skyline: the re-read must be a part of it that can carry the decision.
-  if (reread < std::max(8, w / 32)) return std::nullopt;
-  Registration r = RefinePose(guided, horizon, first.pose, first.focal_px, false, options);
-  auto moved = [&](const CameraPose& p) {
-    return std::abs(AngDiffDeg(p.azimuth_deg, first.pose.azimuth_deg)) > kMaxPoseMoveDeg ||
-           std::abs(p.pitch_deg - first.pose.pitch_deg) > kMaxPoseMoveDeg;
-  };
-  std::ostringstream m;
-  if (r.registered && moved(r.pose)) {
-    r.registered = false;
-    m << "the re-read skyline moved the pose; " << first.message;
-  } else if (r.registered) {
-    // The re-read skyline must register on its own, by the whole decision
-    // (ambiguity and evidence included), at the same pose.
-    const Registration search = Register(guided, horizon, options);
-    if (!search.registered) {
-      r.registered = false;
-      m << "the re-read skyline does not register on its own (" << search.message << "); " << first.message;
-    } else if (moved(search.pose)) {
-      r.registered = false;
-      m << "the re-read skyline registers elsewhere; " << first.message;
-    } else {
-      r = search;
-      m << "registered (" << reread << " columns re-read near the DEM horizon)";
-    }
-  } else {
-    m << r.message << " (after re-reading " << reread << " columns)";
-  }
-  r.message = m.str();
-  return r;
-}
-
-Registration RegisterImage(const cv::Mat& image, const Skyline& skyline, const HorizonProfile& horizon,
-                           const RegistrationOptions& options) {
-  Registration r = Register(skyline, horizon, options);
-  if (!r.registered)
-    if (auto again = RecheckWithGuidedSkyline(image, skyline, horizon, r, options); again && again->registered)
-      return *again;
-  return r;
 }
 
 }  // namespace horizonreg

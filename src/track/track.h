@@ -89,41 +89,4 @@ class Tracker {
   std::optional<SensorCalibration> calibration_;
 };
 
-// The skyline in a band around `predicted_y` (per column, NaN where there is
-// no prediction): per column the strongest colour step (mean of three rows
-// above against three below), sub-pixel, NaN where weaker than min_contrast.
-// Exposed for tests and benchmarks.
-Skyline BandSkyline(const cv::Mat& frame, const std::vector<double>& predicted_y, double band_px, double min_contrast);
-
-// A second look at a registration that failed because too little of the
-// extracted skyline fits (at most 0.2 short of the share needed; residual
-// test passed; ambiguity ratio at least 0.85 of the one needed, as the
-// misread columns deflate it):
-// where the extracted boundary lies more than the inlier tolerance *below*
-// the horizon projected at the best pose (the colour model took terrain for
-// sky, as with snow against a pale sky), the column is searched within twice
-// the tolerance of the projection for a clear colour step with smooth sky
-// above it; found steps replace those columns and the pose is refined again
-// (RefinePose), and the search on the re-read skyline must register on its
-// own (the whole decision, ambiguity and evidence included) at that pose.
-// Only such columns are re-read: the extractor's sky is uniform, so a clear
-// step inside it is structure, whereas the terrain below a projection is full
-// of edges that would confirm any pose; null (hidden) columns stay null. The
-// new pose must lie within 0.2 deg of the first one. Returns the new
-// registration (registered or not), or nullopt when fewer than
-// max(8, width / 32) columns were re-read.
-std::optional<Registration> RecheckWithGuidedSkyline(const cv::Mat& image, const Skyline& skyline,
-                                                     const HorizonProfile& horizon, const Registration& first,
-                                                     const RegistrationOptions& options);
-
-// Register() of the image's skyline, then RecheckWithGuidedSkyline() when
-// it is a near miss: what `horizonreg register`, the demo and the tracker's
-// full registrations use.
-Registration RegisterImage(const cv::Mat& image, const Skyline& skyline, const HorizonProfile& horizon,
-                           const RegistrationOptions& options);
-
-// Per image column, the y of the horizon projected at `pose` (linear between
-// projected horizon bins; NaN outside). Faster than ProjectedHorizonRows.
-std::vector<double> PredictedSkyline(const HorizonProfile& horizon, const CameraPose& pose, const CameraIntrinsics& k);
-
 }  // namespace horizonreg

@@ -2,6 +2,7 @@
 // JSON parsing of input files with the project's error messages.
 #pragma once
 
+#include <cmath>
 #include <nlohmann/json.hpp>
 #include <string>
 
@@ -16,6 +17,13 @@ inline nlohmann::json ParseJson(const std::string& text, const std::string& what
   } catch (const nlohmann::json::exception& e) {
     throw InvalidArgument(what + ": '" + source + "' is not valid JSON (" + e.what() + ")");
   }
+}
+
+// A JSON number rounded to `decimals`, or null for NaN / infinity.
+inline nlohmann::json Rounded(double v, int decimals) {
+  if (!std::isfinite(v)) return nullptr;
+  const double scale = std::pow(10.0, decimals);
+  return std::round(v * scale) / scale;
 }
 
 }  // namespace horizonreg

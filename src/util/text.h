@@ -31,6 +31,14 @@ inline std::optional<double> ParseDouble(const std::string& s) {
   return std::nullopt;
 }
 
+// `s` without leading and trailing white space.
+inline std::string Trim(const std::string& s) {
+  size_t b = 0, e = s.size();
+  while (b < e && std::isspace(static_cast<unsigned char>(s[b]))) ++b;
+  while (e > b && std::isspace(static_cast<unsigned char>(s[e - 1]))) --e;
+  return s.substr(b, e - b);
+}
+
 // The cells of one CSV line: commas separate, double quotes group (a doubled
 // quote inside is one quote), carriage returns are dropped.
 inline std::vector<std::string> SplitCsvLine(const std::string& line) {

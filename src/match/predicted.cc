@@ -1,0 +1,35 @@
+// SPDX-License-Identifier: MIT
+#include "match/predicted.h"
+
+#include <cmath>
+#include <optional>
+
+#include "util/angles.h"
+
+namespace horizonreg {
+
+std::vector<double> PredictedSkyline(const HorizonProfile& horizon, const CameraPose& pose, const CameraIntrinsics& k) {
+  std::vector<double> y(k.width, NAN);
+  const Eigen::Matrix3d m = CamFromEnu(pose);
+  const double half = RadToDeg(std::atan(0.75 * std::hypot(k.width, k.height) / k.focal_px)) + 1.0;
+  const int n = horizon.size();
+  const int span = static_cast<int>(std::ceil(half / horizon.azimuth_step_deg));
+  const int centre = static_cast<int>(std::lround(pose.azimuth_deg / horizon.azimuth_step_deg));
+  std::optional<Eigen::Vector2d> prev;
+  for (int j = centre - span; j <= centre + span; ++j) {
+    const int b = ((j % n) + n) % n;
+    const auto p = ProjectAzEl(m, k, j * horizon.azimuth_step_deg, horizon.elevation_deg[b]);
+    if (p && prev && p->x() > prev->x()) {
+      const int c0 = std::max(0, static_cast<int>(std::ceil(prev->x() - 0.5)));
+      const int c1 = std::min(k.width - 1, static_cast<int>(std::floor(p->x() - 0.5)));
+      for (int c = c0; c <= c1; ++c) {
+        const double t = (c + 0.5 - prev->x()) / (p->x() - prev->x());
+        y[c] = prev->y() + t * (p->y() - prev->y());
+      }
+    }
+    prev = p;
+  }
+  return y;
+}
+
+}  // namespace horizonreg

@@ -1,0 +1,263 @@
+// SPDX-License-Identifier: MIT
+#include "pipeline/register_photo.h"
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <opencv2/core.hpp>
+#include <sstream>
+
+#include "match/predicted.h"
+#include "skyline/band.h"
+#include "util/angles.h"
+#include "util/errors.h"
+
+namespace horizonreg {
+
+namespace {
+
+// The prior 1-sigma of a pose given as initial, degrees (a search
+// constrained to about +-3 sigma around it).
+constexpr double kInitialSigmaDeg = 2.0;
+
+double MsSince(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
+
+}  // namespace
+
+PhotoPosition ResolvePhotoPosition(std::optional<double> lat, std::optional<double> lon, std::optional<double> agl,
+                                   std::optional<double> alt, const SensorReading& sensors, const SensorReading& exif,
+                                   const std::string& image) {
+  if (lat.has_value() != lon.has_value()) throw InvalidArgument("latitude and longitude go together");
+  PhotoPosition p;
+  if (lat) {
+    p.lat_deg = *lat, p.lon_deg = *lon, p.source = "arguments";
+  } else if (sensors.lat_deg && sensors.lon_deg) {
+    p.lat_deg = *sensors.lat_deg, p.lon_deg = *sensors.lon_deg, p.source = "sensors";
+  } else if (exif.lat_deg && exif.lon_deg) {
+    p.lat_deg = *exif.lat_deg, p.lon_deg = *exif.lon_deg, p.source = "exif";
+  } else {
+    throw InvalidArgument("no camera position for '" + image + "': give --lat and --lon (the photo has no GPS EXIF)");
+  }
+  if (!(std::abs(p.lat_deg) <= 90.0) || !(std::abs(p.lon_deg) <= 360.0))
+    throw InvalidArgument("invalid camera position for '" + image + "': latitude within [-90, 90], longitude [-180, 360]");
+  p.agl_m = agl, p.alt_m = alt;
+  if (!agl && !alt && sensors.agl_m) p.agl_m = sensors.agl_m;
+  if (!agl && !alt && !p.agl_m && p.source == "exif" && exif.alt_m) p.alt_m = exif.alt_m;
+  return p;
+}
+
+InitialPose ParseInitialPose(const std::string& text, const std::string& what) {
+  double v[4];
+  char tail = 0;
+  if (std::sscanf(text.c_str(), "%lf,%lf,%lf,%lf%c", &v[0], &v[1], &v[2], &v[3], &tail) != 4 ||
+      !(v[3] > 0 && v[3] < 170) || !(std::abs(v[1]) <= 90) || !(std::abs(v[2]) <= 90) || !std::isfinite(v[0]))
+    throw InvalidArgument(what + " '" + text + "': expected AZ,PITCH,ROLL,HFOV in degrees");
+  return {v[0], v[1], v[2], v[3]};
+}
+
+std::pair<double, double> ParseHfovRange(const std::string& s, const std::string& what) {
+  const auto colon = s.find(':');
+  double lo = NAN, hi = NAN;
+  try {
+    if (colon == std::string::npos) throw std::invalid_argument("no colon");
+    size_t used = 0;
+    lo = std::stod(s.substr(0, colon), &used);
+    if (used != colon) throw std::invalid_argument("trailing");
+    const std::string rest = s.substr(colon + 1);
+    hi = std::stod(rest, &used);
+    if (used != rest.size()) throw std::invalid_argument("trailing");
+  } catch (const std::exception&) {
+    throw InvalidArgument(what + " '" + s + "': expected MIN:MAX in degrees, e.g. 30:60");
+  }
+  if (!(lo > 0 && hi >= lo && hi < 170)) throw InvalidArgument(what + " '" + s + "': need 0 < MIN <= MAX < 170");
+  return {lo, hi};
+}
+
+void PhotoOptions::Check() const {
+  if (hfov_deg && !(*hfov_deg > 0 && *hfov_deg < 170)) ThrowField("hfov_deg", *hfov_deg, "in (0, 170) degrees");
+  if (hfov_deg && hfov_range_deg) throw InvalidArgument("give a known opening angle or a range to search, not both");
+  if (hfov_range_deg && !(hfov_range_deg->first > 0 && hfov_range_deg->second >= hfov_range_deg->first &&
+                          hfov_range_deg->second < 170))
+    throw InvalidArgument("hfov_range_deg: need 0 < MIN <= MAX < 170");
+  if (position_sigma_m && !(*position_sigma_m >= 0 && *position_sigma_m <= 100'000))
+    ThrowField("position_sigma_m", *position_sigma_m, "in [0, 100000] metres");
+  registration.Check();
+}
+
+SkylineOptions PhotoSkylineOptions(const PhotoOptions& options) {
+  SkylineOptions so;
+  if (options.sensors.roll_deg) so.roll_hint_deg = std::clamp(*options.sensors.roll_deg, -45.0, 45.0);
+  so.Check();
+  return so;
+}
+
+RegistrationOptions PhotoRegistrationOptions(const Site& site, const PhotoOptions& po, int width, int height,
+                                             std::string* fov_source) {
+  po.Check();
+  RegistrationOptions ro = po.registration;
+  std::string fov = "default";
+  if (po.hfov_deg) {
+    ro.min_hfov_deg = *po.hfov_deg * 0.97, ro.max_hfov_deg = std::min(169.0, *po.hfov_deg * 1.03), fov = "--hfov";
+  } else if (po.hfov_range_deg) {
+    std::tie(ro.min_hfov_deg, ro.max_hfov_deg) = *po.hfov_range_deg;
+    fov = "--hfov-range";
+  } else if (po.exif.focal_35mm) {
+    const double h = HfovFromFocal35mm(*po.exif.focal_35mm, width, height);
+    ro.min_hfov_deg = std::max(1.0, h * 0.9), ro.max_hfov_deg = std::min(169.0, h * 1.1), fov = "exif";
+  }
+  ro.estimate_distortion = !po.pinhole;
+  if (po.camera) ro.known_intrinsics = po.camera->Resized(width, height);
+  // How far the observer's given position may be off (the DEM error model):
+  // coordinates given (arguments, a manifest row) are taken as surveyed
+  // (1 m), a GPS fix from sensors or EXIF as a phone's (10 m); an altitude as
+  // given (1 m, EXIF 20 m), a height above the DEM as that DEM's error under
+  // the observer (2 m).
+  const bool surveyed = po.position_source == "arguments";
+  ro.dem_error.position_sigma_m = po.position_sigma_m.value_or(surveyed ? 1.0 : 10.0);
+  ro.dem_error.height_sigma_m = site.options().alt_m ? (po.position_source == "exif" ? 20.0 : 1.0) : 2.0;
+  ro.prior.compass_deg = po.sensors.compass_deg ? po.sensors.compass_deg : po.exif.compass_deg;
+  if (!po.sensors.compass_deg && po.exif.compass_deg) ro.prior.compass_sigma_deg = 20.0;
+  ro.prior.pitch_deg = po.sensors.pitch_deg;
+  ro.prior.roll_deg = po.sensors.roll_deg;
+  ro.Check();
+  if (fov_source) *fov_source = fov;
+  return ro;
+}
+
+PhotoRegistration RegisterPhoto(const Site& site, const cv::Mat& image_in, const PhotoOptions& po, ThreadPool* pool) {
+  const cv::Mat image = AsBgr(image_in);
+  if (image.type() != CV_8UC3 || image.cols < 8 || image.rows < 8)
+    throw InvalidArgument("RegisterPhoto: the image must be 8-bit grey or BGR, at least 8 x 8 pixels");
+  PhotoRegistration out;
+  out.width = image.cols, out.height = image.rows;
+  RegistrationOptions ro = PhotoRegistrationOptions(site, po, image.cols, image.rows, &out.fov_source);
+  ro.pool = pool;
+  out.options = ro;
+  auto t0 = std::chrono::steady_clock::now();
+  if (po.skyline) {
+    if (po.skyline->width != image.cols || po.skyline->height != image.rows)
+      throw InvalidArgument("RegisterPhoto: the given skyline is not for a " + std::to_string(image.cols) + " x " +
+                            std::to_string(image.rows) + " image");
+    out.skyline = *po.skyline;
+  } else {
+    out.skyline = ExtractSkyline(image, PhotoSkylineOptions(po));
+    out.skyline_ms = MsSince(t0);
+  }
+  t0 = std::chrono::steady_clock::now();
+  const HorizonProfile& horizon = site.horizon();
+  Registration& r = out.registration;
+  if (!po.initial) {
+    r = RegisterImage(image, out.skyline, horizon, ro);  // with a second look at a near miss
+  } else {
+    // A known approximate pose (a fixed camera, a pose a few degrees off):
+    // the search constrained to it (priors of a few degrees, the opening
+    // angle within 5% unless given), else the graduated local fit from it,
+    // which starts at a noise scale of 50 px per 1000 (about 2.5 deg at a
+    // 50-deg opening angle).
+    const CameraPose start{WrapAzimuthDeg(po.initial->azimuth_deg), po.initial->pitch_deg, po.initial->roll_deg};
+    RegistrationOptions constrained = ro;
+    constrained.prior.compass_deg = start.azimuth_deg;
+    constrained.prior.pitch_deg = start.pitch_deg;
+    constrained.prior.roll_deg = start.roll_deg;
+    constrained.prior.compass_sigma_deg = kInitialSigmaDeg;
+    constrained.prior.inclinometer_sigma_deg = kInitialSigmaDeg;
+    const bool hfov_given = po.hfov_deg.has_value() || po.hfov_range_deg.has_value();
+    if (!hfov_given)
+      constrained.min_hfov_deg = po.initial->hfov_deg * 0.95,
+      constrained.max_hfov_deg = std::min(169.0, po.initial->hfov_deg * 1.05);
+    r = RegisterImage(image, out.skyline, horizon, constrained);
+    if (!r.registered)
+      r = RefinePose(out.skyline, horizon, start, FocalFromHfovPx(po.initial->hfov_deg, image.cols), hfov_given, ro,
+                     50.0);
+  }
+  out.match_ms = MsSince(t0);
+  return out;
+}
+
+Registration RegisterImage(const cv::Mat& image, const Skyline& skyline, const HorizonProfile& horizon,
+                           const RegistrationOptions& options) {
+  Registration r = Register(skyline, horizon, options);
+  if (!r.registered)
+    if (auto again = RecheckWithGuidedSkyline(image, skyline, horizon, r, options); again && again->registered)
+      return *again;
+  return r;
+}
+
+std::optional<Registration> RecheckWithGuidedSkyline(const cv::Mat& image, const Skyline& skyline,
+                                                     const HorizonProfile& horizon, const Registration& first,
+                                                     const RegistrationOptions& options) {
+  // A near miss, not a guess: at most 0.2 short of the inlier share needed.
+  const double min_first_inliers = options.min_inlier_fraction - 0.2;
+  constexpr double kMinStep = 15.0;  // BGR distance of the 3-row means across the step (sky noise ~3)
+  constexpr double kMaxPoseMoveDeg = 0.2;
+  // The columns to re-read inflate the best pose's misfit, so its ambiguity
+  // ratio reads low; the search on the re-read skyline checks it again.
+  const double min_first_ambiguity = 0.85 * options.min_ambiguity_ratio;
+  const int w = skyline.width, h = skyline.height;
+  const double px_scale = ToleranceScale(w), tau = options.inlier_px * px_scale;
+  if (first.registered || !(first.focal_px > 0.0) || first.inlier_fraction < min_first_inliers ||
+      !(first.model_rms_px <= options.max_rms_px * px_scale) || first.ambiguity_ratio < min_first_ambiguity)
+    return std::nullopt;
+  const cv::Mat bgr = AsBgr(image);
+  if (bgr.type() != CV_8UC3 || bgr.cols != w || bgr.rows != h || static_cast<int>(skyline.y.size()) != w)
+    return std::nullopt;
+  const std::vector<double> pred = PredictedSkyline(horizon, first.pose, first.Intrinsics(w, h));
+  auto mean3 = [&](int r0, int c) {  // mean BGR of rows r0 .. r0 + 2
+    cv::Vec3d m(0, 0, 0);
+    for (int r = r0; r < r0 + 3; ++r) m += cv::Vec3d(bgr.at<cv::Vec3b>(r, c));
+    return m / 3.0;
+  };
+  Skyline guided = skyline;
+  int reread = 0;
+  std::vector<double> scores;
+  for (int c = 0; c < w; ++c) {
+    const double p = pred[c], y = skyline.y[c];
+    if (!std::isfinite(p) || !std::isfinite(y) || y - p <= tau) continue;  // fits, lies above, or is hidden
+    // Boundaries between rows r - 1 and r, above the extracted one.
+    const int lo = std::max(6, static_cast<int>(std::floor(p - 2 * tau)));
+    const int hi = std::min({h - 3, static_cast<int>(std::ceil(p + 2 * tau)), static_cast<int>(std::floor(y - tau))});
+    if (hi < lo) continue;
+    const auto [r, yr, contrast] = StrongestStep(
+        lo, hi, [&](int row) { return cv::norm(mean3(row, c) - mean3(row - 3, c)); }, scores);
+    if (contrast < kMinStep || cv::norm(mean3(r - 3, c) - mean3(r - 6, c)) > 0.5 * kMinStep) continue;
+    guided.y[c] = yr;
+    guided.confidence[c] = std::min(1.0, contrast / (4.0 * kMinStep));
+    ++reread;
+  }
+  // A few columns would only give the refit a second chance at the same
+  // skyline: the re-read must be a part of it that can carry the decision.
+  if (reread < std::max(8, w / 32)) return std::nullopt;
+  Registration r = RefinePose(guided, horizon, first.pose, first.focal_px, false, options);
+  auto moved = [&](const CameraPose& p) {
+    return std::abs(AngDiffDeg(p.azimuth_deg, first.pose.azimuth_deg)) > kMaxPoseMoveDeg ||
+           std::abs(p.pitch_deg - first.pose.pitch_deg) > kMaxPoseMoveDeg;
+  };
+  std::ostringstream m;
+  if (r.registered && moved(r.pose)) {
+    r.registered = false;
+    m << "the re-read skyline moved the pose; " << first.message;
+  } else if (r.registered) {
+    // The re-read skyline must register on its own, by the whole decision
+    // (ambiguity and evidence included), at the same pose.
+    const Registration search = Register(guided, horizon, options);
+    if (!search.registered) {
+      r.registered = false;
+      m << "the re-read skyline does not register on its own (" << search.message << "); " << first.message;
+    } else if (moved(search.pose)) {
+      r.registered = false;
+      m << "the re-read skyline registers elsewhere; " << first.message;
+    } else {
+      r = search;
+      m << "registered (" << reread << " columns re-read near the DEM horizon)";
+    }
+  } else {
+    m << r.message << " (after re-reading " << reread << " columns)";
+  }
+  r.message = m.str();
+  return r;
+}
+
+
+}  // namespace horizonreg

@@ -1,0 +1,112 @@
+// SPDX-License-Identifier: MIT
+// Registering one photo at a Site: the position and its error model, the
+// opening-angle window from the arguments, the EXIF or the default range,
+// priors from sensors, a known camera or a lens to fit, a known approximate
+// pose, the skyline, the search and the second look at a near miss. What
+// `horizonreg register`, `batch`, `demo`, the tracker and Python call.
+#pragma once
+
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "camera/camera.h"
+#include "match/register.h"
+#include "pipeline/site.h"
+#include "sensors/sensors.h"
+#include "skyline/skyline.h"
+#include "util/thread_pool.h"
+
+namespace cv {
+class Mat;
+}
+
+namespace horizonreg {
+
+// Where the camera stands: the given coordinates, else the sensor file's,
+// else the photo's GPS EXIF. `source` is "arguments", "sensors" or "exif"
+// (coordinates in a batch manifest count as arguments).
+struct PhotoPosition {
+  double lat_deg = NAN, lon_deg = NAN;
+  std::optional<double> agl_m, alt_m;
+  std::string source = "arguments";
+};
+// Throws InvalidArgument naming `image` when no position is known.
+PhotoPosition ResolvePhotoPosition(std::optional<double> lat, std::optional<double> lon, std::optional<double> agl,
+                                   std::optional<double> alt, const SensorReading& sensors, const SensorReading& exif,
+                                   const std::string& image);
+
+// A known approximate pose (a fixed camera): azimuth, pitch, roll, opening angle.
+struct InitialPose {
+  double azimuth_deg = 0.0, pitch_deg = 0.0, roll_deg = 0.0, hfov_deg = 0.0;
+};
+// "AZ,PITCH,ROLL,HFOV" in degrees; throws InvalidArgument naming `what` and the text.
+InitialPose ParseInitialPose(const std::string& text, const std::string& what = "--initial");
+// "MIN:MAX" opening angles in degrees; throws InvalidArgument naming `what` and the text.
+std::pair<double, double> ParseHfovRange(const std::string& text, const std::string& what = "--hfov-range");
+
+struct PhotoOptions {
+  SensorReading sensors;  // compass / inclinometer priors (a --sensors file or a manifest's)
+  SensorReading exif;     // the photo's EXIF (35 mm focal length, GPS direction), empty to ignore it
+  std::optional<double> hfov_deg;                          // known opening angle (searched within +-3%)
+  std::optional<std::pair<double, double>> hfov_range_deg;  // else this range, else EXIF +-10%, else the default
+  std::optional<CameraIntrinsics> camera;                   // known intrinsics, used exactly
+  std::optional<InitialPose> initial;                       // refine from here instead of searching
+  std::optional<Skyline> skyline;                           // use this skyline instead of extracting one
+  bool pinhole = false;                                     // no lens distortion: do not fit k1
+  std::string position_source = "arguments";               // PhotoPosition::source
+  std::optional<double> position_sigma_m;  // how far the position may be off (default by its source)
+  RegistrationOptions registration;        // thresholds; priors, opening angles and intrinsics are set from the above
+  void Check() const;                      // Throws InvalidArgument naming the field.
+};
+
+struct PhotoRegistration {
+  Registration registration;
+  Skyline skyline;
+  RegistrationOptions options;  // as used: priors, opening-angle window
+  std::string fov_source;       // "--hfov", "--hfov-range", "exif" or "default"
+  int width = 0, height = 0;
+  double skyline_ms = 0.0, match_ms = 0.0;
+};
+
+// The skyline extractor's options for this photo (the inclinometer's roll as a hint).
+SkylineOptions PhotoSkylineOptions(const PhotoOptions& options);
+// The registration options for a width x height photo at `site`.
+RegistrationOptions PhotoRegistrationOptions(const Site& site, const PhotoOptions& options, int width, int height,
+                                             std::string* fov_source = nullptr);
+
+// Registers an 8-bit BGR (or grey) photo taken at `site`; the stages run on
+// `pool` when given (else on their own threads). Never throws for a photo
+// that does not register (status no_match); throws InvalidArgument for bad
+// options or an image that is not a photo.
+PhotoRegistration RegisterPhoto(const Site& site, const cv::Mat& image, const PhotoOptions& options,
+                                ThreadPool* pool = nullptr);
+
+// Register() of the image's skyline, then RecheckWithGuidedSkyline() when
+// it is a near miss.
+Registration RegisterImage(const cv::Mat& image, const Skyline& skyline, const HorizonProfile& horizon,
+                           const RegistrationOptions& options);
+
+// A second look at a registration that failed because too little of the
+// extracted skyline fits (at most 0.2 short of the share needed; residual
+// test passed; ambiguity ratio at least 0.85 of the one needed, as the
+// misread columns deflate it):
+// where the extracted boundary lies more than the inlier tolerance *below*
+// the horizon projected at the best pose (the colour model took terrain for
+// sky, as with snow against a pale sky), the column is searched within twice
+// the tolerance of the projection for a clear colour step with smooth sky
+// above it; found steps replace those columns and the pose is refined again
+// (RefinePose), and the search on the re-read skyline must register on its
+// own (the whole decision, ambiguity and evidence included) at that pose.
+// Only such columns are re-read: the extractor's sky is uniform, so a clear
+// step inside it is structure, whereas the terrain below a projection is full
+// of edges that would confirm any pose; null (hidden) columns stay null. The
+// new pose must lie within 0.2 deg of the first one. Returns the new
+// registration (registered or not), or nullopt when fewer than
+// max(8, width / 32) columns were re-read.
+std::optional<Registration> RecheckWithGuidedSkyline(const cv::Mat& image, const Skyline& skyline,
+                                                     const HorizonProfile& horizon, const Registration& first,
+                                                     const RegistrationOptions& options);
+
+}  // namespace horizonreg

@@ -1,0 +1,225 @@
+// SPDX-License-Identifier: MIT
+#include "pipeline/register_photo.h"
+
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <opencv2/core.hpp>
+#include <thread>
+
+#include "match/predicted.h"
+#include "pipeline/report.h"
+#include "render/render.h"
+#include "testing/cone_ring.h"
+#include "util/angles.h"
+#include "util/errors.h"
+
+namespace horizonreg {
+namespace {
+
+SiteOptions RingSiteOptions() {
+  SiteOptions o;
+  o.agl_m = 1.7;
+  o.max_distance_m = 30'000.0;
+  return o;
+}
+
+TEST(Site, HoldsTheRegistrationHorizonAndComputesRidgesOnceAcrossThreads) {
+  testing::ConeRing ring = testing::MakeConeRing();
+  ThreadPool pool(2);
+  const Site site(ring.window, 46.0, 8.0, RingSiteOptions(), &pool);
+  ASSERT_EQ(site.horizon().size(), ring.horizon.size());  // 0.1 deg bins
+  for (int i = 0; i < site.horizon().size(); i += 97)
+    EXPECT_DOUBLE_EQ(site.horizon().elevation_deg[i], ring.horizon.elevation_deg[i]) << i;
+  EXPECT_NEAR(site.EyeAboveGroundM(), 1.7, 1e-6);
+  const std::vector<std::vector<Ridge>>* seen[2] = {nullptr, nullptr};
+  std::thread a([&] { seen[0] = &site.ridges(); }), b([&] { seen[1] = &site.ridges(); });
+  a.join();
+  b.join();
+  EXPECT_EQ(seen[0], seen[1]);
+  EXPECT_EQ(seen[0]->size(), static_cast<size_t>(site.horizon().size()));
+}
+
+TEST(Site, RejectsBadPositionsAndOptions) {
+  testing::ConeRing ring = testing::MakeConeRing();
+  EXPECT_THROW(Site(ring.window, 95.0, 8.0, RingSiteOptions()), InvalidArgument);
+  SiteOptions both = RingSiteOptions();
+  both.alt_m = 900.0;
+  EXPECT_THROW(Site(ring.window, 46.0, 8.0, both), InvalidArgument);
+  SiteOptions step = RingSiteOptions();
+  step.azimuth_step_deg = 0.7;  // 360 / step not whole
+  EXPECT_THROW(Site(ring.window, 46.0, 8.0, step), InvalidArgument);
+  EXPECT_THROW(Site({"/nonexistent/dem.tif"}, 46.0, 8.0, RingSiteOptions()), Error);
+}
+
+TEST(ResolvePhotoPosition, ArgumentsThenSensorsThenExif) {
+  SensorReading sensors, exif;
+  exif.lat_deg = 1.0, exif.lon_deg = 2.0, exif.alt_m = 300.0;
+  PhotoPosition p = ResolvePhotoPosition(std::nullopt, std::nullopt, std::nullopt, std::nullopt, sensors, exif, "a.jpg");
+  EXPECT_EQ(p.source, "exif");
+  EXPECT_EQ(p.lat_deg, 1.0);
+  EXPECT_EQ(p.alt_m, 300.0);
+  sensors.lat_deg = 3.0, sensors.lon_deg = 4.0, sensors.agl_m = 10.0;
+  p = ResolvePhotoPosition(std::nullopt, std::nullopt, std::nullopt, std::nullopt, sensors, exif, "a.jpg");
+  EXPECT_EQ(p.source, "sensors");
+  EXPECT_EQ(p.agl_m, 10.0);
+  EXPECT_FALSE(p.alt_m);
+  p = ResolvePhotoPosition(5.0, 6.0, std::nullopt, 12.0, sensors, exif, "a.jpg");
+  EXPECT_EQ(p.source, "arguments");
+  EXPECT_EQ(p.lon_deg, 6.0);
+  EXPECT_FALSE(p.agl_m);
+  EXPECT_EQ(p.alt_m, 12.0);
+  try {
+    ResolvePhotoPosition(std::nullopt, std::nullopt, std::nullopt, std::nullopt, {}, {}, "b.jpg");
+    FAIL();
+  } catch (const InvalidArgument& e) {
+    EXPECT_NE(std::string(e.what()).find("'b.jpg'"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(ResolvePhotoPosition(5.0, std::nullopt, std::nullopt, std::nullopt, {}, {}, "c.jpg"), InvalidArgument);
+  EXPECT_THROW(ResolvePhotoPosition(95.0, 6.0, std::nullopt, std::nullopt, {}, {}, "c.jpg"), InvalidArgument);
+}
+
+TEST(ParseInitialPose, ReadsFourAnglesAndNamesBadText) {
+  const InitialPose p = ParseInitialPose("10.5,-2,0.5,48");
+  EXPECT_EQ(p.azimuth_deg, 10.5);
+  EXPECT_EQ(p.pitch_deg, -2.0);
+  EXPECT_EQ(p.hfov_deg, 48.0);
+  for (const char* bad : {"", "1,2,3", "1,2,3,4,5", "1,2,3,200", "1,95,0,40", "a,b,c,d", "1,2,3,40x"})
+    EXPECT_THROW(ParseInitialPose(bad), InvalidArgument) << bad;
+  EXPECT_EQ(ParseHfovRange("30:60"), std::make_pair(30.0, 60.0));
+  for (const char* bad : {"30", "60:30", "0:10", "30:60x", "30:170"}) EXPECT_THROW(ParseHfovRange(bad), InvalidArgument) << bad;
+}
+
+TEST(PhotoRegistrationOptions, OpeningAngleWindowAndErrorModelBySource) {
+  testing::ConeRing ring = testing::MakeConeRing();
+  const Site site(ring.window, 46.0, 8.0, RingSiteOptions());
+  PhotoOptions po;
+  std::string fov;
+  RegistrationOptions ro = PhotoRegistrationOptions(site, po, 600, 400, &fov);
+  EXPECT_EQ(fov, "default");
+  EXPECT_EQ(ro.min_hfov_deg, RegistrationOptions{}.min_hfov_deg);
+  EXPECT_EQ(ro.dem_error.position_sigma_m, 1.0);  // coordinates given: surveyed
+  EXPECT_EQ(ro.dem_error.height_sigma_m, 2.0);    // a height above the DEM
+  po.exif.focal_35mm = 35.0;
+  po.exif.compass_deg = 120.0;
+  po.position_source = "exif";
+  ro = PhotoRegistrationOptions(site, po, 600, 400, &fov);
+  EXPECT_EQ(fov, "exif");
+  const double h = HfovFromFocal35mm(35.0, 600, 400);
+  EXPECT_NEAR(ro.min_hfov_deg, 0.9 * h, 1e-9);
+  EXPECT_NEAR(ro.max_hfov_deg, 1.1 * h, 1e-9);
+  EXPECT_EQ(ro.dem_error.position_sigma_m, 10.0);  // a phone's GPS
+  ASSERT_TRUE(ro.prior.compass_deg);
+  EXPECT_EQ(*ro.prior.compass_deg, 120.0);
+  EXPECT_EQ(ro.prior.compass_sigma_deg, 20.0);
+  po.hfov_deg = 40.0;
+  ro = PhotoRegistrationOptions(site, po, 600, 400, &fov);
+  EXPECT_EQ(fov, "--hfov");
+  EXPECT_NEAR(ro.min_hfov_deg, 38.8, 1e-9);
+  po.hfov_range_deg = std::make_pair(30.0, 50.0);
+  EXPECT_THROW(PhotoRegistrationOptions(site, po, 600, 400), InvalidArgument);  // both
+}
+
+TEST(RegisterPhoto, RegistersARenderedViewAndReportsIt) {
+  testing::ConeRing ring = testing::MakeConeRing();
+  ThreadPool pool(2);
+  const Site site(ring.window, 46.0, 8.0, RingSiteOptions(), &pool);
+  RenderOptions ro;
+  ro.max_distance_m = 30'000.0;
+  const auto k = CameraIntrinsics::FromHfov(480, 320, 50.0);
+  const CameraPose truth{40.0, 1.5, -0.8};
+  const cv::Mat photo = RenderView(ring.window, ring.eye, truth, k, ro);
+  PhotoOptions po;
+  po.pinhole = true;
+  const PhotoRegistration r = RegisterPhoto(site, photo, po, &pool);
+  ASSERT_TRUE(r.registration.registered) << r.registration.message;
+  EXPECT_NEAR(AngDiffDeg(r.registration.pose.azimuth_deg, truth.azimuth_deg), 0.0, 0.1);
+  EXPECT_NEAR(r.registration.pose.pitch_deg, truth.pitch_deg, 0.1);
+  EXPECT_NEAR(r.registration.hfov_deg, 50.0, 1.0);
+  // The same photo refined from a pose 2 deg off, and without a pool.
+  po.initial = InitialPose{42.0, 1.5, -0.8, 50.0};
+  const PhotoRegistration again = RegisterPhoto(site, photo, po);
+  ASSERT_TRUE(again.registration.registered) << again.registration.message;
+  EXPECT_NEAR(AngDiffDeg(again.registration.pose.azimuth_deg, truth.azimuth_deg), 0.0, 0.1);
+  const nlohmann::json j = RegistrationReport(site, r, "arguments", 12.0);
+  EXPECT_EQ(j["status"], "registered");
+  EXPECT_EQ(j["width"], 480);
+  EXPECT_EQ(j["observer"]["source"], "arguments");
+  EXPECT_NEAR(j["azimuth_deg"].get<double>(), r.registration.pose.azimuth_deg, 1e-4);
+  EXPECT_EQ(j["timing_ms"]["total"], 12.0);
+  const cv::Mat drawn = DrawRegistration(site, photo, r, "");
+  EXPECT_EQ(drawn.size(), photo.size());
+  // A uniform grey frame: no_match with a reason, never an exception.
+  const PhotoRegistration none = RegisterPhoto(site, cv::Mat(320, 480, CV_8UC3, cv::Scalar(128, 128, 128)), {}, &pool);
+  EXPECT_FALSE(none.registration.registered);
+  EXPECT_FALSE(none.registration.message.empty());
+  EXPECT_EQ(RegistrationReport(site, none, "arguments", 1.0)["azimuth_deg"], nullptr);
+  EXPECT_THROW(RegisterPhoto(site, cv::Mat(4, 4, CV_8UC3), {}), InvalidArgument);
+}
+
+// The cone ring as a flat-coloured photo whose skyline
+// extraction missed a snow field: in the left 30% of the columns the extracted
+// boundary lies 25 px low, at the snow's lower edge.
+class GuidedSkylineTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    horizon = testing::MakeConeRing().horizon;
+    const std::vector<double> truth_y = PredictedSkyline(horizon, truth, k);
+    image = cv::Mat(k.height, k.width, CV_8UC3, cv::Scalar(230, 200, 170));  // sky
+    skyline.width = k.width;
+    skyline.height = k.height;
+    skyline.y = truth_y;
+    skyline.confidence.assign(k.width, 1.0);
+    for (int c = 0; c < k.width; ++c) {
+      const bool snow = c < k.width * 30 / 100;
+      const int top = static_cast<int>(std::lround(truth_y[c]));
+      for (int r = std::max(0, top); r < k.height; ++r)
+        image.at<cv::Vec3b>(r, c) = r < top + 25 && snow ? cv::Vec3b(235, 235, 235) : cv::Vec3b(60, 110, 70);
+      if (snow) skyline.y[c] = top + 25.0;
+    }
+  }
+  const CameraIntrinsics k = CameraIntrinsics::FromHfov(480, 320, 50.0);
+  const CameraPose truth{25.0, 2.0, 0.5};
+  HorizonProfile horizon;
+  cv::Mat image;
+  Skyline skyline;
+};
+
+TEST_F(GuidedSkylineTest, ANearMissBecomesARegistrationAtTheTruePose) {
+  const Registration first = Register(skyline, horizon, RegistrationOptions{});
+  ASSERT_FALSE(first.registered) << first.message;  // 70% fit, and the misread columns leave it ambiguous
+  ASSERT_GE(first.inlier_fraction, RegistrationOptions{}.min_inlier_fraction - 0.2) << first.message;
+  const auto again = RecheckWithGuidedSkyline(image, skyline, horizon, first, RegistrationOptions{});
+  ASSERT_TRUE(again);
+  ASSERT_TRUE(again->registered) << again->message;
+  EXPECT_NEAR(AngDiffDeg(again->pose.azimuth_deg, truth.azimuth_deg), 0.0, 0.05);
+  EXPECT_NEAR(again->pose.pitch_deg, truth.pitch_deg, 0.05);
+  EXPECT_GE(again->inlier_fraction, 0.95);
+  EXPECT_TRUE(RegisterImage(image, skyline, horizon, RegistrationOptions{}).registered);
+}
+
+TEST_F(GuidedSkylineTest, AUniformSkyOrAWrongPoseIsNotConfirmed) {
+  const Registration first = Register(skyline, horizon, RegistrationOptions{});
+  ASSERT_FALSE(first.registered) << first.message;
+  // No snow: the sky really reaches down to the extracted boundary.
+  cv::Mat plain = image.clone();
+  for (int c = 0; c < k.width; ++c)
+    for (int r = 0; r < static_cast<int>(skyline.y[c]) && r < k.height; ++r)
+      plain.at<cv::Vec3b>(r, c) = cv::Vec3b(230, 200, 170);
+  const auto none = RecheckWithGuidedSkyline(plain, skyline, horizon, first, RegistrationOptions{});
+  EXPECT_TRUE(!none || !none->registered);
+  EXPECT_FALSE(RegisterImage(plain, skyline, horizon, RegistrationOptions{}).registered);
+  // A pose 1 deg off: the re-read columns pull the fit back to the truth,
+  // which is not the pose that was to be confirmed.
+  Registration wrong = first;
+  wrong.pose.azimuth_deg += 1.0;
+  const auto moved = RecheckWithGuidedSkyline(image, skyline, horizon, wrong, RegistrationOptions{});
+  EXPECT_TRUE(!moved || !moved->registered);
+  // Hidden (null) columns stay null; a registered first result is left alone.
+  Registration done = first;
+  done.registered = true;
+  EXPECT_FALSE(RecheckWithGuidedSkyline(image, skyline, horizon, done, RegistrationOptions{}));
+}
+
+}  // namespace
+}  // namespace horizonreg

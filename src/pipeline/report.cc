@@ -1,0 +1,132 @@
+// SPDX-License-Identifier: MIT
+#include "pipeline/report.h"
+
+#include <algorithm>
+#include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
+#include <sstream>
+
+#include "overlay/overlay.h"
+#include "util/angles.h"
+#include "util/json.h"
+
+namespace horizonreg {
+
+nlohmann::json RegistrationReport(const Site& site, const PhotoRegistration& photo, const std::string& position_source,
+                                  double total_ms) {
+  const Registration& r = photo.registration;
+  const RegistrationOptions& ro = photo.options;
+  const HorizonProfile& profile = site.horizon();
+  nlohmann::json j;
+  j["status"] = r.registered ? "registered" : "no_match";
+  j["message"] = r.message;
+  j["observer"] = {{"lat", Rounded(profile.observer.lat_deg, 7)},
+                   {"lon", Rounded(profile.observer.lon_deg, 7)},
+                   {"eye_height_m", Rounded(profile.observer.height_m, 2)},
+                   {"source", position_source}};
+  j["width"] = photo.width;
+  j["height"] = photo.height;
+  const auto pose_field = [&](double v, int decimals) { return r.registered ? Rounded(v, decimals) : nullptr; };
+  j["azimuth_deg"] = pose_field(r.pose.azimuth_deg, 4);
+  j["pitch_deg"] = pose_field(r.pose.pitch_deg, 4);
+  j["roll_deg"] = pose_field(r.pose.roll_deg, 4);
+  j["hfov_deg"] = pose_field(r.hfov_deg, 4);
+  j["center_ray"] = {{"azimuth_deg", pose_field(r.center_ray.azimuth_deg, 4)},
+                     {"elevation_deg", pose_field(r.center_ray.pitch_deg, 4)}};
+  j["focal_px"] = pose_field(r.focal_px, 2);
+  j["cx_px_per_deg"] = pose_field(DegToRad(r.focal_px), 3);
+  j["cy_px_per_deg"] = pose_field(DegToRad(r.focal_px), 3);
+  j["azimuth_sigma_deg"] = pose_field(r.azimuth_sigma_deg, 4);
+  j["pitch_sigma_deg"] = pose_field(r.pitch_sigma_deg, 4);
+  j["roll_sigma_deg"] = pose_field(r.roll_sigma_deg, 4);
+  {
+    const CameraIntrinsics& k = r.intrinsics;
+    nlohmann::json cam = {{"source", ro.known_intrinsics ? "file" : "fitted"}};
+    if (k.width > 0) {
+      cam["focal_px"] = Rounded(k.focal_px, 2);
+      cam["fy_px"] = Rounded(k.FocalYPx(), 2);
+      cam["cx_px"] = Rounded(k.cx_px, 2);
+      cam["cy_px"] = Rounded(k.cy_px, 2);
+      nlohmann::json kk = nlohmann::json::array(), pp = nlohmann::json::array();
+      for (double v : k.distortion.k()) kk.push_back(Rounded(v, 5));
+      for (double v : k.distortion.p()) pp.push_back(Rounded(v, 5));
+      cam["k"] = kk;
+      cam["p"] = pp;
+    }
+    cam["k1_estimated"] = r.distortion_estimated;
+    cam["k1_sigma"] = Rounded(r.k1_sigma, 4);
+    j["camera"] = cam;
+    j["dem"] = {{"post_spacing_m", Rounded(r.dem.post_spacing_m, 1)},
+                {"horizon_distance_m", Rounded(r.dem.horizon_distance_m, 0)},
+                {"expected_flattening_px", Rounded(r.dem.expected_flattening_px, 2)},
+                {"skyline_above_dem_px", Rounded(r.dem.skyline_above_dem_px, 2)},
+                {"dem_explained_fraction", Rounded(r.dem.dem_explained_fraction, 3)},
+                {"flattening_scale", Rounded(r.dem.flattening_scale, 2)}};
+  }
+  j["rms_px"] = Rounded(r.rms_px, 3);
+  j["model_rms_px"] = Rounded(r.model_rms_px, 3);
+  j["ex_px"] = Rounded(r.ex_px, 3);
+  j["ey_px"] = Rounded(r.ey_px, 3);
+  j["inlier_fraction"] = Rounded(r.inlier_fraction, 3);
+  j["ambiguity_ratio"] = Rounded(std::min(r.ambiguity_ratio, 1e6), 2);
+  j["second_inlier_fraction"] = Rounded(r.second_inlier_fraction, 3);
+  j["evidence"] = {{"misfit", Rounded(r.misfit, 3)},
+                   {"second_misfit", Rounded(r.second_misfit, 3)},
+                   {"informative_columns", Rounded(r.informative_columns, 1)},
+                   {"independent_inliers", Rounded(r.independent_inliers, 1)},
+                   {"nats", Rounded(r.evidence_nats, 1)}};
+  j["hypotheses"] = r.hypotheses;
+  nlohmann::json alternatives = nlohmann::json::array();
+  for (const PoseCandidate& c : r.candidates)
+    alternatives.push_back({{"azimuth_deg", Rounded(c.pose.azimuth_deg, 3)},
+                            {"pitch_deg", Rounded(c.pose.pitch_deg, 3)},
+                            {"roll_deg", Rounded(c.pose.roll_deg, 3)},
+                            {"hfov_deg", Rounded(HfovFromFocalDeg(c.focal_px, photo.width), 3)},
+                            {"cost", Rounded(c.cost, 4)},
+                            {"inlier_fraction", Rounded(c.inlier_fraction, 3)}});
+  j["candidates"] = alternatives;
+  j["extrema"] = {{"image", r.image_extrema}, {"horizon", r.horizon_extrema}};
+  const Skyline& skyline = photo.skyline;
+  j["skyline_visible_fraction"] =
+      skyline.width > 0 ? Rounded(static_cast<double>(skyline.VisibleCount()) / skyline.width, 3) : nullptr;
+  j["hfov_search_deg"] = {Rounded(ro.min_hfov_deg, 2), Rounded(ro.max_hfov_deg, 2), photo.fov_source};
+  nlohmann::json prior = nlohmann::json::object();
+  if (ro.prior.compass_deg) prior["compass_deg"] = Rounded(*ro.prior.compass_deg, 3);
+  if (ro.prior.pitch_deg) prior["pitch_deg"] = Rounded(*ro.prior.pitch_deg, 3);
+  if (ro.prior.roll_deg) prior["roll_deg"] = Rounded(*ro.prior.roll_deg, 3);
+  j["priors"] = prior;
+  j["timing_ms"] = {{"horizon", Rounded(site.load_ms() + site.horizon_ms(), 1)},
+                    {"skyline", Rounded(photo.skyline_ms, 1)},
+                    {"match", Rounded(photo.match_ms, 1)},
+                    {"total", Rounded(total_ms, 1)}};
+  return j;
+}
+
+cv::Mat DrawRegistration(const Site& site, const cv::Mat& image, const PhotoRegistration& photo,
+                         const std::string& landmarks_path) {
+  const Registration& r = photo.registration;
+  std::ostringstream caption;
+  caption.precision(3);
+  caption << std::fixed;
+  if (r.registered) {
+    caption << "registered: rms " << r.rms_px << " px, sigma az " << r.azimuth_sigma_deg << " pitch "
+            << r.pitch_sigma_deg << " deg";
+    OverlayOptions oo;
+    oo.caption = caption.str();
+    oo.eye_height_m = site.EyeAboveGroundM();
+    return DrawOverlay(image, r.pose, r.Intrinsics(image.cols, image.rows),
+                       {&site.horizon(), &site.ridges(), OverlayLandmarks(site, landmarks_path)}, oo)
+        .image;
+  }
+  caption << "no match: " << r.message;
+  cv::Mat drawn = DrawSkylineDebug(image, photo.skyline);
+  const double s = std::max(0.6, image.cols / 1000.0);
+  const cv::Point at{static_cast<int>(10 * s), static_cast<int>(30 * s)};
+  cv::putText(drawn, caption.str(), at, cv::FONT_HERSHEY_SIMPLEX, 0.6 * s, cv::Scalar(0, 0, 0),
+              static_cast<int>(4 * s), cv::LINE_AA);
+  cv::putText(drawn, caption.str(), at, cv::FONT_HERSHEY_SIMPLEX, 0.6 * s, cv::Scalar(255, 255, 255),
+              std::max(1, static_cast<int>(1.5 * s)), cv::LINE_AA);
+  return drawn;
+}
+
+}  // namespace horizonreg
