@@ -18,6 +18,8 @@ namespace horizonreg::cli {
 
 struct HorizonArgs {
   std::vector<std::string> dem;
+  std::string dem_dir, points;
+  bool sea_level_fill = false;
   double lat = NAN, lon = NAN;
   std::optional<double> agl, alt;
   HorizonOptions options;
@@ -39,6 +41,8 @@ int RunSkyline(const SkylineArgs& args);
 struct RegisterArgs {
   std::string image;
   std::vector<std::string> dem;
+  std::string dem_dir;
+  bool sea_level_fill = false;
   std::optional<double> lat, lon, agl, alt, hfov, position_sigma;
   std::string sensors, hfov_range, json, overlay, landmarks, initial, camera, skyline;
   double refraction = kDefaultRefraction;

@@ -7,6 +7,7 @@
 #include "cli/commands.h"
 #include "cli/image_io.h"
 #include "cli/output.h"
+#include "dem/tiles.h"
 #include "overlay/horizon_plot.h"
 #include "util/errors.h"
 
@@ -16,7 +17,9 @@ using nlohmann::json;
 
 void AddHorizonCommand(CLI::App& app, HorizonArgs& a) {
   CLI::App* c = app.add_subcommand("horizon", "Compute the 360-degree terrain horizon from DEM file(s)");
-  c->add_option("--dem", a.dem, "DEM file (any GDAL raster, or a matplotlib .npz); repeat for a mosaic")->required();
+  c->add_option("--dem", a.dem, "DEM file (any GDAL raster, or a matplotlib .npz); repeat for a mosaic");
+  c->add_option("--dem-dir", a.dem_dir, "Folder of DEM tiles: those around the observer are found by their extents");
+  c->add_flag("--sea-level-fill", a.sea_level_fill, "Ground missing from every DEM file is the sea at 0 m");
   c->add_option("--lat", a.lat, "Observer latitude, degrees (WGS84)")->required();
   c->add_option("--lon", a.lon, "Observer longitude, degrees (WGS84)")->required();
   auto* agl = c->add_option("--agl", a.agl, "Eye height above the terrain, m (default 1.7)");
@@ -131,8 +134,9 @@ int RunHorizon(const HorizonArgs& a) {
     m << "--lon " << a.lon << " is not a longitude in [-180, 360]";
     throw InvalidArgument(m.str());
   }
-  const Terrain terrain(a.dem);
-  const TerrainWindow window = terrain.ReadWindow({a.lat, a.lon, 0.0}, a.options.max_distance_m);
+  const Terrain terrain(DemFilesFor(a.dem, a.dem_dir, a.lat, a.lon, a.options.max_distance_m));
+  TerrainWindow window = terrain.ReadWindow({a.lat, a.lon, 0.0}, a.options.max_distance_m);
+  if (a.sea_level_fill) AddSeaLevel(window, {a.lat, a.lon, 0.0}, a.options.max_distance_m);
   const GeodeticPoint observer = ResolveObserver(window, a.lat, a.lon, a.agl, a.alt);
   const HorizonProfile profile = ComputeHorizon(window, observer, a.options);
   std::vector<std::vector<Ridge>> ridges;

@@ -10,6 +10,7 @@
 #include "cli/commands.h"
 #include "cli/image_io.h"
 #include "cli/output.h"
+#include "dem/tiles.h"
 #include "match/register.h"
 #include "overlay/overlay.h"
 #include "pipeline/camera_file.h"
@@ -26,7 +27,9 @@ namespace horizonreg::cli {
 void AddRegisterCommand(CLI::App& app, RegisterArgs& a) {
   CLI::App* c = app.add_subcommand("register", "Recover the camera's azimuth, pitch, roll and focal length of a photo");
   c->add_option("image", a.image, "Photo (JPEG, PNG, ...)")->required();
-  c->add_option("--dem", a.dem, "DEM file(s), any GDAL format; several files form a mosaic")->required();
+  c->add_option("--dem", a.dem, "DEM file(s), any GDAL format; several files form a mosaic");
+  c->add_option("--dem-dir", a.dem_dir, "Folder of DEM tiles: those around the camera are found by their extents");
+  c->add_flag("--sea-level-fill", a.sea_level_fill, "Ground missing from every DEM file is the sea at 0 m");
   c->add_option("--lat", a.lat, "Camera latitude, degrees (default: --sensors or the photo's GPS EXIF)");
   c->add_option("--lon", a.lon, "Camera longitude, degrees");
   auto* agl = c->add_option("--agl", a.agl, "Eye height above the ground, metres (default 1.7)");
@@ -85,7 +88,10 @@ int RunRegister(const RegisterArgs& a) {
   so.refraction = a.refraction;
   so.azimuth_step_deg = a.step;
   so.max_distance_m = a.max_distance;
+  so.sea_level_fill = a.sea_level_fill;
   so.Check();
+  const std::vector<std::string> dem =
+      DemFilesFor(a.dem, a.dem_dir, position.lat_deg, position.lon_deg, so.max_distance_m);
   const SkylineOptions sky_options = PhotoSkylineOptions(po);
 
   // The skyline runs on a second thread while the DEM loads.
@@ -97,7 +103,7 @@ int RunRegister(const RegisterArgs& a) {
   ThreadPool pool(2);
   std::unique_ptr<Site> site;
   try {
-    site = std::make_unique<Site>(a.dem, position.lat_deg, position.lon_deg, so, &pool);
+    site = std::make_unique<Site>(dem, position.lat_deg, position.lon_deg, so, &pool);
   } catch (...) {
     skyline_job.wait();
     throw;

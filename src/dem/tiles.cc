@@ -46,11 +46,17 @@ double DistanceToBoxM(const GeoBox& b, double lat, double lon) {
 
 bool HgtNameExtent(const std::string& file_name, GeoBox& box) {
   const std::string n = Lower(fs::path(file_name).filename().string());
-  char ns = 0, ew = 0;
-  int lat = 0, lon = 0, used = 0;
-  if (std::sscanf(n.c_str(), "%c%2d%c%3d.hgt%n", &ns, &lat, &ew, &lon, &used) != 4 || used != static_cast<int>(n.size()))
-    return false;
-  if ((ns != 'n' && ns != 's') || (ew != 'e' && ew != 'w') || lat > 90 || lon > 180) return false;
+  // [ns]DD[ew]DDD.hgt
+  if (n.size() != 11 || n.compare(7, 4, ".hgt") != 0) return false;
+  const auto digits = [&](size_t from, size_t count) {
+    for (size_t i = from; i < from + count; ++i)
+      if (!std::isdigit(static_cast<unsigned char>(n[i]))) return false;
+    return true;
+  };
+  const char ns = n[0], ew = n[3];
+  if ((ns != 'n' && ns != 's') || (ew != 'e' && ew != 'w') || !digits(1, 2) || !digits(4, 3)) return false;
+  const int lat = std::stoi(n.substr(1, 2)), lon = std::stoi(n.substr(4, 3));
+  if (lat > 89 || lon > 180) return false;
   const double s = ns == 'n' ? lat : -lat, w = ew == 'e' ? lon : -lon;
   box = {s, s + 1.0, w, w + 1.0};
   return true;
@@ -104,6 +110,14 @@ std::vector<std::string> DemTileIndex::TilesAround(double lat, double lon, doubl
     throw InvalidArgument(m.str());
   }
   return out;
+}
+
+std::vector<std::string> DemFilesFor(const std::vector<std::string>& dem, const std::string& dem_dir, double lat_deg,
+                                     double lon_deg, double radius_m) {
+  if (!dem.empty() && !dem_dir.empty()) throw InvalidArgument("give --dem files or --dem-dir, not both");
+  if (dem.empty() && dem_dir.empty()) throw InvalidArgument("no DEM: give --dem FILE or --dem-dir DIR");
+  if (!dem.empty()) return dem;
+  return DemTileIndex(dem_dir).TilesAround(lat_deg, lon_deg, radius_m);
 }
 
 }  // namespace horizonreg

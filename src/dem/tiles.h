@@ -35,6 +35,12 @@ class DemTileIndex {
   std::vector<std::pair<std::string, GeoBox>> tiles_;
 };
 
+// The DEM files to open for a position: `dem` as given, or the tiles of
+// `dem_dir` within `radius_m` of (lat, lon). Throws InvalidArgument when
+// both or neither are given.
+std::vector<std::string> DemFilesFor(const std::vector<std::string>& dem, const std::string& dem_dir, double lat_deg,
+                                     double lon_deg, double radius_m);
+
 // The extent of an SRTM-named tile ("N47E009.hgt", "s12w077.hgt"), posts
 // included (1 deg square); false when the name is not one.
 bool HgtNameExtent(const std::string& file_name, GeoBox& box);
