@@ -7,9 +7,11 @@ packages=(
   libgdal-dev gdal-bin libopencv-dev libeigen3-dev libceres-dev libgeographiclib-dev
   libcli11-dev nlohmann-json3-dev libexiv2-dev libgtest-dev libgmock-dev libbenchmark-dev
   python-matplotlib-data   # the demo's DEM: jacksboro_fault_dem.npz
+  pybind11-dev python3-dev python3-numpy   # the Python module
 )
 if [ "${1:-}" = "--test" ]; then
   packages+=(grass-core)  # the r.horizon comparison test
+  packages+=(python3-pytest python3-distributed)  # the Python API and Dask tests
 fi
 missing=()
 for p in "${packages[@]}"; do

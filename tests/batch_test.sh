@@ -9,7 +9,7 @@ set -u
 BIN=$1
 SHARED=$(cd "$2" 2>/dev/null && pwd)
 if [ -z "$SHARED" ] || [ ! -d "$SHARED/scenes/dev" ]; then echo "SKIPPED: ../shared is absent"; exit 77; fi
-PY=/usr/bin/python3
+PY=python3
 TMP=$(mktemp -d)
 trap 'rm -rf "$TMP"' EXIT
 fail() { echo "FAIL: $*"; exit 1; }

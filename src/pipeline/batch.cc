@@ -36,6 +36,36 @@ using Record = std::map<std::string, std::string>;
   throw InvalidArgument(what + " '" + path + "'" + (line > 0 ? ", line " + std::to_string(line) : "") + ": " + why);
 }
 
+std::vector<std::pair<int, Record>> RecordsFromJson(const std::string& what, const std::string& path,
+                                                    nlohmann::json root, const std::vector<std::string>& known,
+                                                    const std::string& json_key) {
+  std::vector<std::pair<int, Record>> out;
+  const auto check_column = [&](const std::string& name, int line) {
+    if (std::find(known.begin(), known.end(), name) == known.end()) {
+      std::string list;
+      for (const auto& k : known) list += (list.empty() ? "" : ", ") + k;
+      Bad(what, path, line, "unknown column '" + name + "' (known: " + list + ")");
+    }
+  };
+  if (root.is_object() && root.contains(json_key)) root = root[json_key];
+  if (!root.is_array()) Bad(what, path, 0, "expected a JSON array of objects (or {\"" + json_key + "\": [...]})");
+  int index = 0;
+  for (const auto& o : root) {
+    ++index;
+    if (!o.is_object()) Bad(what, path, 0, "entry " + std::to_string(index) + " is not an object");
+    Record r;
+    for (const auto& [k, v] : o.items()) {
+      check_column(k, 0);
+      if (v.is_null()) continue;
+      if (v.is_string()) r[k] = v.get<std::string>();
+      else if (v.is_number()) r[k] = v.dump();
+      else Bad(what, path, 0, "entry " + std::to_string(index) + ": '" + k + "' must be a string or a number");
+    }
+    out.emplace_back(index, std::move(r));
+  }
+  return out;
+}
+
 // Records of a CSV (header first) or JSON file (array of objects, or
 // {"<key>": [...]}), with their line numbers; rejects unknown columns.
 std::vector<std::pair<int, Record>> ReadRecords(const std::string& what, const std::string& path,
@@ -50,26 +80,8 @@ std::vector<std::pair<int, Record>> ReadRecords(const std::string& what, const s
     }
   };
   size_t first = text.find_first_not_of(" \t\r\n");
-  if (first != std::string::npos && (text[first] == '[' || text[first] == '{')) {
-    nlohmann::json root = ParseJson(text, what, path);
-    if (root.is_object() && root.contains(json_key)) root = root[json_key];
-    if (!root.is_array()) Bad(what, path, 0, "expected a JSON array of objects (or {\"" + json_key + "\": [...]})");
-    int index = 0;
-    for (const auto& o : root) {
-      ++index;
-      if (!o.is_object()) Bad(what, path, 0, "entry " + std::to_string(index) + " is not an object");
-      Record r;
-      for (const auto& [k, v] : o.items()) {
-        check_column(k, 0);
-        if (v.is_null()) continue;
-        if (v.is_string()) r[k] = v.get<std::string>();
-        else if (v.is_number()) r[k] = v.dump();
-        else Bad(what, path, 0, "entry " + std::to_string(index) + ": '" + k + "' must be a string or a number");
-      }
-      out.emplace_back(index, std::move(r));
-    }
-    return out;
-  }
+  if (first != std::string::npos && (text[first] == '[' || text[first] == '{'))
+    return RecordsFromJson(what, path, ParseJson(text, what, path), known, json_key);
   std::istringstream in(text);
   std::string line;
   std::vector<std::string> header;
@@ -151,6 +163,53 @@ std::map<std::string, BatchStation> ReadStations(const std::string& path) {
   return out;
 }
 
+namespace {
+
+std::vector<BatchItem> ItemsFromRecords(const std::vector<std::pair<int, Record>>& records, const fs::path& base,
+                                        const std::string& what, const std::string& path) {
+  std::vector<BatchItem> items;
+  for (const auto& [line, r] : records) {
+    BatchItem it;
+    it.line = line;
+    it.image = Text(r, "image");
+    if (it.image.empty()) Bad(what, path, line, "no image");
+    it.image_path = Resolve(base, it.image);
+    it.lat = Number(what, path, line, r, "lat", -90, 90);
+    it.lon = Number(what, path, line, r, "lon", -180, 360);
+    if (it.lat.has_value() != it.lon.has_value()) Bad(what, path, line, "lat and lon go together");
+    it.alt_m = Number(what, path, line, r, "alt_m", -1000, 20000);
+    it.agl_m = Number(what, path, line, r, "agl_m", 0, 20000);
+    if (it.alt_m && it.agl_m) Bad(what, path, line, "give alt_m or agl_m, not both");
+    it.hfov_deg = Number(what, path, line, r, "hfov_deg", 0.1, 169);
+    it.camera_path = Resolve(base, Text(r, "camera"));
+    it.sensors_path = Resolve(base, Text(r, "sensors"));
+    it.station = Text(r, "station");
+    if (const std::string init = Text(r, "initial"); !init.empty())
+      it.initial = ParseInitialPose(init, what + " '" + path + "', line " + std::to_string(line) + ": initial");
+    items.push_back(std::move(it));
+  }
+  if (items.empty()) throw InvalidArgument(what + " '" + path + "': no photos");
+  return items;
+}
+
+// Duplicates; positions and defaults from the stations file.
+void FinishItems(std::vector<BatchItem>& items, const std::string& what, const std::string& path,
+                 const std::map<std::string, BatchStation>& stations) {
+  std::set<std::string> seen;
+  for (BatchItem& it : items) {
+    if (!seen.insert(it.image).second) Bad(what, path, it.line, "image '" + it.image + "' is listed twice");
+    if (it.lat || it.station.empty() || stations.empty()) continue;  // else: sensors or EXIF GPS at run time
+    const auto s = stations.find(it.station);
+    if (s == stations.end()) Bad(what, path, it.line, "station '" + it.station + "' is not in the stations file");
+    it.lat = s->second.lat, it.lon = s->second.lon;
+    if (!it.alt_m && !it.agl_m) it.alt_m = s->second.alt_m, it.agl_m = s->second.agl_m;
+    if (!it.hfov_deg) it.hfov_deg = s->second.hfov_deg;
+    if (it.camera_path.empty()) it.camera_path = s->second.camera_path;
+  }
+}
+
+}  // namespace
+
 std::vector<BatchItem> ReadManifest(const std::string& path, const std::map<std::string, BatchStation>& stations) {
   const std::string what = "manifest";
   std::vector<BatchItem> items;
@@ -179,44 +238,21 @@ std::vector<BatchItem> ReadManifest(const std::string& path, const std::map<std:
       items.push_back(std::move(it));
     }
   } else {
-    const fs::path base = fs::path(path).parent_path();
-    for (const auto& [line, r] :
-         ReadRecords(what, path, {std::begin(kManifestColumns), std::end(kManifestColumns)}, "photos")) {
-      BatchItem it;
-      it.line = line;
-      it.image = Text(r, "image");
-      if (it.image.empty()) Bad(what, path, line, "no image");
-      it.image_path = Resolve(base, it.image);
-      it.lat = Number(what, path, line, r, "lat", -90, 90);
-      it.lon = Number(what, path, line, r, "lon", -180, 360);
-      if (it.lat.has_value() != it.lon.has_value()) Bad(what, path, line, "lat and lon go together");
-      it.alt_m = Number(what, path, line, r, "alt_m", -1000, 20000);
-      it.agl_m = Number(what, path, line, r, "agl_m", 0, 20000);
-      if (it.alt_m && it.agl_m) Bad(what, path, line, "give alt_m or agl_m, not both");
-      it.hfov_deg = Number(what, path, line, r, "hfov_deg", 0.1, 169);
-      it.camera_path = Resolve(base, Text(r, "camera"));
-      it.sensors_path = Resolve(base, Text(r, "sensors"));
-      it.station = Text(r, "station");
-      if (const std::string init = Text(r, "initial"); !init.empty())
-        it.initial = ParseInitialPose(init, "manifest '" + path + "', line " + std::to_string(line) + ": initial");
-      items.push_back(std::move(it));
-    }
-    if (items.empty()) throw InvalidArgument("manifest '" + path + "': no photos");
+    items = ItemsFromRecords(ReadRecords(what, path, {std::begin(kManifestColumns), std::end(kManifestColumns)}, "photos"),
+                             fs::path(path).parent_path(), what, path);
   }
-  std::set<std::string> seen;
-  for (BatchItem& it : items) {
-    if (!seen.insert(it.image).second) Bad(what, path, it.line, "image '" + it.image + "' is listed twice");
-    if (it.lat || it.station.empty()) continue;
-    const auto s = stations.find(it.station);
-    if (s == stations.end()) {
-      if (stations.empty() && it.sensors_path.empty()) continue;  // the photo's EXIF GPS, at run time
-      Bad(what, path, it.line, "station '" + it.station + "' has no position (not in the stations file)");
-    }
-    it.lat = s->second.lat, it.lon = s->second.lon;
-    if (!it.alt_m && !it.agl_m) it.alt_m = s->second.alt_m, it.agl_m = s->second.agl_m;
-    if (!it.hfov_deg) it.hfov_deg = s->second.hfov_deg;
-    if (it.camera_path.empty()) it.camera_path = s->second.camera_path;
-  }
+  FinishItems(items, what, path, stations);
+  return items;
+}
+
+std::vector<BatchItem> ManifestFromJson(const nlohmann::json& rows, const std::string& base_dir,
+                                        const std::string& source,
+                                        const std::map<std::string, BatchStation>& stations) {
+  const std::string what = "manifest";
+  std::vector<BatchItem> items = ItemsFromRecords(
+      RecordsFromJson(what, source, rows, {std::begin(kManifestColumns), std::end(kManifestColumns)}, "photos"),
+      fs::path(base_dir), what, source);
+  FinishItems(items, what, source, stations);
   return items;
 }
 

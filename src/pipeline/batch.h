@@ -59,6 +59,13 @@ std::map<std::string, BatchStation> ReadStations(const std::string& path);
 // twice or an unknown station.
 std::vector<BatchItem> ReadManifest(const std::string& path, const std::map<std::string, BatchStation>& stations = {});
 
+// The same from an already parsed JSON array of manifest objects (Python,
+// Dask); relative paths are resolved against `base_dir`, `source` names the
+// array in messages.
+std::vector<BatchItem> ManifestFromJson(const nlohmann::json& rows, const std::string& base_dir,
+                                        const std::string& source,
+                                        const std::map<std::string, BatchStation>& stations = {});
+
 struct BatchOptions {
   std::vector<std::string> dem;  // DEM files (a mosaic), or
   // the DEM files to use for a station at (lat, lon) (e.g. tiles found in a
