@@ -29,6 +29,7 @@ bench: build
 	$(BUILD)/skyline_bench
 	$(BUILD)/register_bench
 	$(BUILD)/track_bench
+	$(BUILD)/batch_bench
 	scripts/bench_process.sh $(BUILD)/horizonreg
 
 asan: test-deps

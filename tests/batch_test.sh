@@ -99,4 +99,24 @@ land = [i for i, x in enumerate(a["elevation_deg"]) if x is not None and x > 0.0
 assert all(a["elevation_deg"][i] == b["elevation_deg"][i] for i in land), "the fill moved a land horizon"
 print(f"sea-level fill: {len(changed)} of {len(a['elevation_deg'])} bins now see the sea; land bins unchanged")
 PYEOF
+# 5. Horizons at many points: each profile of --points equals the single-point one.
+printf 'id,lat,lon,agl_m\nsaentis,47.25,9.35,2\nvalley,47.3,9.5,\n"a, b",47.4,9.2,10\n' > "$TMP/points.csv"
+"$BIN" horizon --dem "$SHARED/dem/N47E009.hgt" --points "$TMP/points.csv" -o "$TMP/points.json" || fail "--points"
+"$BIN" horizon --dem "$SHARED/dem/N47E009.hgt" --points "$TMP/points.csv" --format csv -o "$TMP/points.csv.out" || fail "--points csv"
+"$BIN" horizon --dem "$SHARED/dem/N47E009.hgt" --lat 47.25 --lon 9.35 --agl 2 -o "$TMP/p1.json"
+"$BIN" horizon --dem "$SHARED/dem/N47E009.hgt" --lat 47.3 --lon 9.5 -o "$TMP/p2.json"
+"$BIN" horizon --dem "$SHARED/dem/N47E009.hgt" --lat 47.4 --lon 9.2 --agl 10 -o "$TMP/p3.json"
+$PY - "$TMP" <<'PYEOF' || fail "--points differs from single points"
+import csv, json, sys
+t = sys.argv[1]
+many = json.load(open(f"{t}/points.json"))
+assert [p["id"] for p in many] == ["saentis", "valley", "a, b"], [p["id"] for p in many]
+rows = list(csv.DictReader(open(f"{t}/points.csv.out")))
+assert len(rows) == 3 * 1440, len(rows)
+for i, p in enumerate(many):
+    one = json.load(open(f"{t}/p{i + 1}.json"))
+    assert p["elevation_deg"] == one["elevation_deg"] and p["distance_m"] == one["distance_m"], p["id"]
+    assert [float(r["elevation_deg"]) for r in rows if r["id"] == p["id"]] == one["elevation_deg"], p["id"]
+print("horizon --points: 3 profiles equal to the single-point runs (JSON and CSV)")
+PYEOF
 echo "PASS"

@@ -27,6 +27,7 @@ struct HorizonArgs {
   std::string output = "-";
   std::string plot;
   bool ridges = false;
+  bool threads_given = false;  // --threads was given (else --points uses every core)
 };
 void AddHorizonCommand(CLI::App& app, HorizonArgs& args);
 int RunHorizon(const HorizonArgs& args);

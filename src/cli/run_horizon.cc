@@ -1,15 +1,25 @@
 // SPDX-License-Identifier: MIT
+// `horizonreg horizon`: the 360-degree horizon at one point or many
+// (--points). Also built without OpenCV into horizonreg-horizon
+// (HORIZONREG_NO_PLOT), which the launcher runs unless --plot is given.
 #include <CLI/CLI.hpp>
 #include <chrono>
 #include <iostream>
+#include <memory>
+#include <mutex>
 #include <sstream>
+#include <thread>
 
 #include "cli/commands.h"
-#include "cli/image_io.h"
 #include "cli/output.h"
 #include "dem/tiles.h"
-#include "overlay/horizon_plot.h"
 #include "util/errors.h"
+#include "util/text.h"
+#include "util/thread_pool.h"
+#ifndef HORIZONREG_NO_PLOT
+#include "cli/image_io.h"
+#include "overlay/horizon_plot.h"
+#endif
 
 namespace horizonreg::cli {
 
@@ -20,8 +30,13 @@ void AddHorizonCommand(CLI::App& app, HorizonArgs& a) {
   c->add_option("--dem", a.dem, "DEM file (any GDAL raster, or a matplotlib .npz); repeat for a mosaic");
   c->add_option("--dem-dir", a.dem_dir, "Folder of DEM tiles: those around the observer are found by their extents");
   c->add_flag("--sea-level-fill", a.sea_level_fill, "Ground missing from every DEM file is the sea at 0 m");
-  c->add_option("--lat", a.lat, "Observer latitude, degrees (WGS84)")->required();
-  c->add_option("--lon", a.lon, "Observer longitude, degrees (WGS84)")->required();
+  auto* lat = c->add_option("--lat", a.lat, "Observer latitude, degrees (WGS84)");
+  auto* lon = c->add_option("--lon", a.lon, "Observer longitude, degrees (WGS84)");
+  auto* points = c->add_option("--points", a.points,
+                               "CSV of observers (lat,lon[,id][,agl_m|alt_m]): one profile per point, in parallel, "
+                               "from one DEM window (output: CSV rows id,...,azimuth_deg,elevation_deg,distance_m, or "
+                               "a JSON array of horizon objects)");
+  points->excludes(lat)->excludes(lon);
   auto* agl = c->add_option("--agl", a.agl, "Eye height above the terrain, m (default 1.7)");
   auto* alt = c->add_option("--alt", a.alt, "Absolute eye altitude, m (as the DEM's heights)");
   agl->excludes(alt);
@@ -31,7 +46,8 @@ void AddHorizonCommand(CLI::App& app, HorizonArgs& a) {
       ->capture_default_str();
   c->add_option("--refraction", a.options.refraction, "Refraction coefficient k (0 = pure geometry)")
       ->capture_default_str();
-  c->add_option("--threads", a.options.num_threads, "Threads")->capture_default_str();
+  c->add_option("--threads", a.options.num_threads, "Threads (default 2; with --points all cores)")
+      ->each([&a](const std::string&) { a.threads_given = true; });
   c->add_option("--format", a.format, "Output format")
       ->check(CLI::IsMember({"json", "csv", "geojson"}))
       ->capture_default_str();
@@ -121,9 +137,155 @@ std::string HorizonToGeoJson(const HorizonProfile& p) {
   return fc.dump() + "\n";
 }
 
+namespace {
+
+struct Point {
+  std::string id;
+  double lat = NAN, lon = NAN;
+  std::optional<double> agl, alt;
+};
+
+std::vector<Point> ReadPoints(const std::string& path) {
+  const std::string text = ReadTextFile(path, "--points");
+  std::istringstream in(text);
+  std::string line;
+  std::vector<std::string> header;
+  std::vector<Point> out;
+  int n = 0;
+  const auto bad = [&](const std::string& why) {
+    throw InvalidArgument("--points '" + path + "', line " + std::to_string(n) + ": " + why);
+  };
+  while (std::getline(in, line)) {
+    ++n;
+    if (Trim(line).empty() || Trim(line)[0] == '#') continue;
+    std::vector<std::string> cells = SplitCsvLine(line);
+    for (auto& c : cells) c = Trim(c);
+    if (header.empty()) {
+      header = cells;
+      for (const auto& h : header)
+        if (h != "lat" && h != "lon" && h != "id" && h != "name" && h != "agl_m" && h != "alt_m")
+          bad("unknown column '" + h + "' (known: lat, lon, id or name, agl_m, alt_m)");
+      if (std::find(header.begin(), header.end(), "lat") == header.end() ||
+          std::find(header.begin(), header.end(), "lon") == header.end())
+        bad("the header needs lat and lon columns");
+      continue;
+    }
+    if (cells.size() != header.size()) bad(std::to_string(cells.size()) + " cells, the header has " + std::to_string(header.size()));
+    Point p;
+    p.id = std::to_string(out.size() + 1);
+    for (size_t i = 0; i < cells.size(); ++i) {
+      const std::string& h = header[i];
+      if (h == "id" || h == "name") {
+        if (!cells[i].empty()) p.id = cells[i];
+        continue;
+      }
+      if (cells[i].empty()) continue;
+      const auto v = ParseDouble(cells[i]);
+      if (!v || !std::isfinite(*v)) bad(h + " '" + cells[i] + "' is not a number");
+      if (h == "lat") p.lat = *v;
+      if (h == "lon") p.lon = *v;
+      if (h == "agl_m") p.agl = *v;
+      if (h == "alt_m") p.alt = *v;
+    }
+    if (!(std::abs(p.lat) <= 90.0) || !(std::abs(p.lon) <= 360.0)) bad("lat and lon are needed, within [-90, 90] and [-180, 360]");
+    if (p.agl && p.alt) bad("give agl_m or alt_m, not both");
+    out.push_back(p);
+  }
+  if (out.empty()) throw InvalidArgument("--points '" + path + "': no points");
+  return out;
+}
+
+// Profiles at many points: one DEM window around them all when they lie
+// close together (else one per point, read one at a time: a Terrain is not
+// thread-safe), the profiles computed in parallel on one pool.
+int RunHorizonPoints(const HorizonArgs& a) {
+  if (!a.plot.empty()) throw InvalidArgument("--plot draws one profile: not with --points");
+  if (a.format == "geojson") throw InvalidArgument("--points writes csv or json");
+  const std::vector<Point> points = ReadPoints(a.points);
+  double lat0 = 0.0, lon0 = 0.0;
+  for (const Point& p : points) lat0 += p.lat / points.size(), lon0 += p.lon / points.size();
+  double spread = 0.0;
+  const LocalFrame frame({lat0, lon0, 0.0});
+  for (const Point& p : points) {
+    const Eigen::Vector3d e = frame.EnuFromGeodetic({p.lat, p.lon, 0.0});
+    spread = std::max(spread, std::hypot(e.x(), e.y()));
+  }
+  const double radius = a.options.max_distance_m + spread;
+  const bool shared = spread <= a.options.max_distance_m;  // a window at most twice as wide as one point's
+  const Terrain terrain(shared ? DemFilesFor(a.dem, a.dem_dir, lat0, lon0, radius)
+                               : DemFilesFor(a.dem, a.dem_dir, points[0].lat, points[0].lon, a.options.max_distance_m));
+  if (!shared && !a.dem_dir.empty())
+    throw InvalidArgument("--points spread over " + std::to_string(static_cast<int>(spread / 1000)) +
+                          " km: with --dem-dir give points within --max-distance of their centre");
+  std::unique_ptr<TerrainWindow> window;
+  if (shared) {
+    window = std::make_unique<TerrainWindow>(terrain.ReadWindow({lat0, lon0, 0.0}, radius));
+    if (a.sea_level_fill) AddSeaLevel(*window, {lat0, lon0, 0.0}, radius);
+  }
+  const int threads = a.threads_given ? a.options.num_threads
+                                      : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  ThreadPool pool(threads);
+  HorizonOptions ho = a.options;
+  ho.pool = nullptr;  // one point per thread: no nested sweep, no second pre-pass per point
+  ho.num_threads = 1;
+  std::vector<HorizonProfile> profiles(points.size());
+  std::vector<std::string> errors(points.size());
+  std::mutex terrain_mutex;
+  pool.ParallelFor(points.size(), [&](size_t i, int) {
+    const Point& p = points[i];
+    try {
+      if (shared) {
+        profiles[i] = ComputeHorizon(*window, ResolveObserver(*window, p.lat, p.lon, p.agl, p.alt), ho);
+      } else {
+        TerrainWindow w;
+        {
+          std::lock_guard<std::mutex> lock(terrain_mutex);
+          w = terrain.ReadWindow({p.lat, p.lon, 0.0}, a.options.max_distance_m);
+        }
+        if (a.sea_level_fill) AddSeaLevel(w, {p.lat, p.lon, 0.0}, a.options.max_distance_m);
+        profiles[i] = ComputeHorizon(w, ResolveObserver(w, p.lat, p.lon, p.agl, p.alt), ho);
+      }
+    } catch (const Error& e) {
+      errors[i] = e.what();
+    }
+  });
+  for (size_t i = 0; i < points.size(); ++i)
+    if (!errors[i].empty()) throw InvalidArgument("--points '" + a.points + "', point " + points[i].id + ": " + errors[i]);
+  std::string text;
+  if (a.format == "csv") {
+    std::ostringstream o;
+    o.precision(10);
+    o << "id,lat,lon,eye_height_m,azimuth_deg,elevation_deg,distance_m\n";
+    for (size_t i = 0; i < points.size(); ++i) {
+      const HorizonProfile& p = profiles[i];
+      std::string id = points[i].id;
+      if (id.find_first_of(",\"") != std::string::npos) id = "\"" + id + "\"";
+      for (int b = 0; b < p.size(); ++b)
+        o << id << ',' << points[i].lat << ',' << points[i].lon << ',' << Rounded(p.observer.height_m, 2) << ','
+          << Rounded(p.AzimuthDeg(b), 6) << ',' << Rounded(p.elevation_deg[b], 5) << ','
+          << Rounded(p.distance_m[b], 1) << '\n';
+    }
+    text = o.str();
+  } else {
+    json all = json::array();
+    for (size_t i = 0; i < points.size(); ++i) {
+      json j = json::parse(HorizonToJson(profiles[i], {}));
+      j["id"] = points[i].id;
+      all.push_back(std::move(j));
+    }
+    text = all.dump() + "\n";
+  }
+  WriteOutput(a.output, text);
+  return 0;
+}
+
+}  // namespace
+
 int RunHorizon(const HorizonArgs& a) {
   // Check everything before any work (STYLE.md section 6).
   a.options.Check();
+  if (!a.points.empty()) return RunHorizonPoints(a);
+  if (std::isnan(a.lat) || std::isnan(a.lon)) throw InvalidArgument("horizon: give --lat and --lon, or --points FILE");
   if (!std::isfinite(a.lat) || a.lat < -90 || a.lat > 90) {
     std::ostringstream m;
     m << "--lat " << a.lat << " is not a latitude in [-90, 90]";
@@ -149,6 +311,9 @@ int RunHorizon(const HorizonArgs& a) {
   else
     text = HorizonToGeoJson(profile);
   if (!a.plot.empty()) {
+#ifdef HORIZONREG_NO_PLOT
+    throw InvalidArgument("--plot needs the full horizonreg (run through the horizonreg launcher)");
+#else
     HorizonPlotOptions po;
     std::ostringstream t;
     t.precision(7);
@@ -156,6 +321,7 @@ int RunHorizon(const HorizonArgs& a) {
       << "  step " << profile.azimuth_step_deg << " deg  k = " << profile.refraction;
     po.title = t.str();
     WriteImage(a.plot, PlotHorizon(profile, ridges, po));
+#endif
   }
   WriteOutput(a.output, text);
   return 0;

@@ -2,6 +2,9 @@
 #include "dem/dem_grid.h"
 
 #include <algorithm>
+#include <limits>
+
+#include <algorithm>
 
 #include "geo/geodesy.h"
 #include "util/angles.h"
@@ -79,6 +82,29 @@ double DemGrid::SpacingM() const {
   const double dx = frame.EnuFromGeodetic({LatAt(c1, r), LonAt(c1, r), 0.0}).norm();
   const double dy = frame.EnuFromGeodetic({LatAt(c, r1), LonAt(c, r1), 0.0}).norm();
   return std::max(dx, dy);
+}
+
+void DemGrid::IndexBlocks() {
+  for (int l = 0; l < 3; ++l) {
+    const int size = kBlock >> l;
+    const int rows = (height + size - 1) / size, cols = width >= 2 ? (width - 1 + size - 1) / size : 0;
+    std::vector<float>& out = block_max[l];
+    out.assign(static_cast<size_t>(std::max(0, rows)) * std::max(0, cols), -std::numeric_limits<float>::infinity());
+    for (int r = 0; r < height; ++r) {
+      const float* row = height_m.data() + static_cast<size_t>(r) * width;
+      // Row r belongs to block row r / size, and as the row above to the next one.
+      const int rb0 = r / size, rb1 = (r + 1) % size == 0 && r + 1 < height ? rb0 + 1 : rb0;
+      for (int cb = 0; cb < cols; ++cb) {
+        const int c0 = cb * size, c1 = std::min(width - 1, c0 + size);
+        float m = -std::numeric_limits<float>::infinity();
+        for (int c = c0; c <= c1; ++c) m = row[c] > m ? row[c] : m;  // NaN (void) posts are skipped
+        for (int rb = rb0; rb <= rb1; ++rb) {
+          float& dst = out[static_cast<size_t>(rb) * cols + cb];
+          dst = std::max(dst, m);
+        }
+      }
+    }
+  }
 }
 
 }  // namespace horizonreg

@@ -33,6 +33,29 @@ struct DemGrid {
   // by IndexPositions() and refined by Newton iterations in PixelOf.
   double col_from_lonlat[3] = {0, 0, 0}, row_from_lonlat[3] = {0, 0, 0};
   void IndexPositions();
+  // Horizon sweeps go over blocks of kBlock rows by kBlock columns, split
+  // into quarters down to kBlock / 4. The highest post of each block of size
+  // S in {kBlock, kBlock / 2, kBlock / 4} at (rb, cb), over rows
+  // [rb * S - 1, (rb + 1) * S) and columns [cb * S, (cb + 1) * S] (the row
+  // above it and the next block's first column, clipped to the grid; -inf
+  // when all void), lets a sweep skip blocks that cannot reach the horizon.
+  // Filled by IndexBlocks() (Terrain does it; the sweep scans when empty).
+  static constexpr int kBlock = 32;
+  std::vector<float> block_max[3];  // level l: blocks of kBlock >> l
+  // The indexed maximum of rows [r0, r1) (and the row above) and columns
+  // [c0, c1] when that is one whole indexed block, else nullptr.
+  const float* BlockMax(int r0, int r1, int c0, int c1) const {
+    for (int l = 0; l < 3; ++l) {
+      const int size = kBlock >> l;
+      if (block_max[l].empty() || r0 % size || c0 % size || r1 != std::min(height, r0 + size) ||
+          c1 != std::min(width - 1, c0 + size))
+        continue;
+      const int cols = (width - 1 + size - 1) / size;
+      return &block_max[l][static_cast<size_t>(r0 / size) * cols + c0 / size];
+    }
+    return nullptr;
+  }
+  void IndexBlocks();
 
   float At(int col, int row) const { return height_m[static_cast<size_t>(row) * width + col]; }
   double LatAt(int col, int row) const {

@@ -396,6 +396,7 @@ void AddSeaLevel(TerrainWindow& window, const GeodeticPoint& center, double radi
   g.width = static_cast<int>(std::ceil(2 * dlon / spacing)) + 1;
   g.height_m.assign(static_cast<size_t>(g.width) * g.height, 0.0f);
   g.source = "sea level";
+  g.IndexBlocks();
   window.grids.push_back(std::move(g));
 }
 
@@ -550,6 +551,7 @@ TerrainWindow Terrain::ReadWindow(const GeodeticPoint& center, double radius_m) 
       g.height_m = std::move(buf);
       // Longitudes continuous from the observer's side of the antimeridian.
       g.lon0_deg += std::round((center.lon_deg - (g.lon0_deg + g.dlon_deg * g.width / 2)) / 360.0) * 360.0;
+      g.IndexBlocks();
       out.grids.push_back(std::move(g));
     } else {
       done[i] = true;
@@ -564,6 +566,7 @@ TerrainWindow Terrain::ReadWindow(const GeodeticPoint& center, double radius_m) 
       g.height_m = std::move(buf);
       PostPositions(a, w, g);
       g.IndexPositions();
+      g.IndexBlocks();
       out.grids.push_back(std::move(g));
     }
   }

@@ -99,6 +99,16 @@ class HorizonAccumulator {
   };
   const std::vector<Best>& best() const { return best_; }
 
+  // The lowest current maximum tan(elevation) over `count` sectors from
+  // `first` (wrapping): a tile whose points all stay strictly below it
+  // cannot change the result (internal::SweepRows culls it).
+  double LowestBest(int first, int count) const {
+    double m = std::numeric_limits<double>::infinity();
+    const int n = setup_->num_sectors;
+    for (int i = 0; i < count; ++i) m = std::min(m, best_[(first + i) % n].tan_el);
+    return m;
+  }
+
  private:
   void Update(int s, const SweepPoint& x) {
     const Best c{x.tan_el, x.d, x.e, x.n, x.u, x.h};

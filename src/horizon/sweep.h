@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <optional>
 #include <vector>
 
@@ -106,6 +107,18 @@ struct RowScratch {
 // x86-64 with run-time dispatch (horizon/sweep.cc).
 void ComputeRow(const RowInput& in, RowScratch& out);
 
+// sin (first width values) and cos (next width) of (column longitude - lon0)
+// of a separable grid.
+inline std::vector<double> ColumnTrig(const DemGrid& grid, double lon0_deg) {
+  std::vector<double> t(2 * static_cast<size_t>(grid.width));
+  for (int c = 0; c < grid.width; ++c) {
+    const double dl = DegToRad(grid.lon0_deg + c * grid.dlon_deg - lon0_deg);
+    t[c] = std::sin(dl);
+    t[grid.width + c] = std::cos(dl);
+  }
+  return t;
+}
+
 // Calls handler.Post(p) for every valid post, handler.Edge(p, q) for every
 // grid edge between two valid posts, and handler.Quad(a, b, c, d) for every
 // cell with four valid corners (a, b on the northern row west to east, c, d
@@ -114,58 +127,55 @@ void ComputeRow(const RowInput& in, RowScratch& out);
 // sparse subset of the posts goes to handler.Post (see below).
 template <typename Handler>
 void SweepRows(const DemGrid& grid, const LocalFrame& frame, const SweepSetup& setup, int row_begin, int row_end,
-               bool pre_pass, Handler& handler) {
+               bool pre_pass, Handler& handler, const std::vector<double>* column_trig = nullptr) {
   const GeodeticPoint& o = frame.origin();
   const double sp0 = std::sin(DegToRad(o.lat_deg)), cp0 = std::cos(DegToRad(o.lat_deg));
   const double n0 = kWgs84A / std::sqrt(1.0 - kWgs84E2 * sp0 * sp0);
   const double x0 = (n0 + o.height_m) * cp0, z0 = (n0 * (1.0 - kWgs84E2) + o.height_m) * sp0;
   const int w = grid.width;
-  std::vector<double> col_s, col_c;  // sin / cos of (lon - lon0), separable grids
-  if (grid.separable) {
-    col_s.resize(w);
-    col_c.resize(w);
-    for (int c = 0; c < w; ++c) {
-      const double dl = DegToRad(grid.lon0_deg + c * grid.dlon_deg - o.lon_deg);
-      col_s[c] = std::sin(dl);
-      col_c[c] = std::cos(dl);
-    }
-  }
+  // sin / cos of (lon - lon0) per column, separable grids (ColumnTrig, or computed here).
+  std::vector<double> own_trig;
+  if (grid.separable && column_trig == nullptr) own_trig = ColumnTrig(grid, o.lon_deg);
+  const double* col_s = grid.separable ? (column_trig ? column_trig : &own_trig)->data() : nullptr;
+  const double* col_c = grid.separable ? col_s + w : nullptr;
   const double inv_step = 1.0 / setup.step_rad;
   const double lift_scale = setup.refraction / (2.0 * kRefractionEarthRadiusM);
   const double min_d2 = setup.min_distance_m * setup.min_distance_m;
   const double max_d2 = setup.max_distance_m * setup.max_distance_m;
 
   RowScratch scratch(w);
-  auto compute_row = [&](int r, std::vector<SweepPoint>& row, int col_stride = 1) {
+  // Places the posts of row r, columns [c_begin, c_end) (every col_stride-th).
+  auto compute_row = [&](int r, std::vector<SweepPoint>& row, int col_stride = 1, int c_begin = 0, int c_end = -1) {
+    if (c_end < 0) c_end = w;
     RowInput in;
     in.obs_sin_lat = sp0, in.obs_cos_lat = cp0, in.obs_x = x0, in.obs_z = z0;
     in.inv_step = inv_step, in.sector_offset = setup.sector_offset, in.num_sectors = setup.num_sectors;
     in.lift_scale = lift_scale, in.min_d2 = min_d2, in.max_d2 = max_d2;
-    in.heights = grid.height_m.data() + static_cast<size_t>(r) * w;
-    in.count = w;
+    in.heights = grid.height_m.data() + static_cast<size_t>(r) * w + c_begin;
+    in.count = c_end - c_begin;
     in.stride = col_stride;
     if (grid.separable) {
       const double lat = DegToRad(grid.lat0_deg + r * grid.dlat_deg);
       in.row_sin_lat = std::sin(lat), in.row_cos_lat = std::cos(lat);
       in.row_n = kWgs84A / std::sqrt(1.0 - kWgs84E2 * in.row_sin_lat * in.row_sin_lat);
-      in.col_sin_dlon = col_s.data(), in.col_cos_dlon = col_c.data();
+      in.col_sin_dlon = col_s + c_begin, in.col_cos_dlon = col_c + c_begin;
     } else {
-      for (int c = 0; c < w; ++c) {
+      for (int c = c_begin; c < c_end; ++c) {
         const size_t k = static_cast<size_t>(r) * w + c;
         const double lat = DegToRad(grid.lat_deg[k]), dl = DegToRad(grid.lon_deg[k] - o.lon_deg);
-        scratch.sin_lat[c] = std::sin(lat), scratch.cos_lat[c] = std::cos(lat);
-        scratch.sin_dlon[c] = std::sin(dl), scratch.cos_dlon[c] = std::cos(dl);
+        scratch.sin_lat[c - c_begin] = std::sin(lat), scratch.cos_lat[c - c_begin] = std::cos(lat);
+        scratch.sin_dlon[c - c_begin] = std::sin(dl), scratch.cos_dlon[c - c_begin] = std::cos(dl);
       }
       in.post_sin_lat = scratch.sin_lat.data(), in.post_cos_lat = scratch.cos_lat.data();
       in.col_sin_dlon = scratch.sin_dlon.data(), in.col_cos_dlon = scratch.cos_dlon.data();
     }
     ComputeRow(in, scratch);
-    for (int c = 0; c < w; c += col_stride) {
-      SweepPoint& p = row[c];
-      p.sector = scratch.sector[c];
+    for (int i = 0; i < in.count; i += col_stride) {
+      SweepPoint& p = row[c_begin + i];
+      p.sector = scratch.sector[i];
       if (p.sector < 0) continue;
-      p.e = scratch.e[c], p.n = scratch.n[c], p.u = scratch.u[c], p.w = scratch.w[c];
-      p.d = scratch.d[c], p.tan_el = scratch.tan_el[c], p.h = in.heights[c];
+      p.e = scratch.e[i], p.n = scratch.n[i], p.u = scratch.u[i], p.w = scratch.w[i];
+      p.d = scratch.d[i], p.tan_el = scratch.tan_el[i], p.h = in.heights[i];
     }
   };
 
@@ -173,7 +183,7 @@ void SweepRows(const DemGrid& grid, const LocalFrame& frame, const SweepSetup& s
   if (pre_pass) {
     // Every kPrePassStride-th post of every kPrePassStride-th row, so the
     // handler holds a good lower bound of each sector's maximum before the
-    // full pass and can skip the edges and cells that cannot raise it.
+    // full pass and can skip the edges, cells and tiles that cannot raise it.
     constexpr int kPrePassStride = 4;
     for (int r = row_begin; r < row_end; r += kPrePassStride) {
       compute_row(r, cur, kPrePassStride);
@@ -182,19 +192,123 @@ void SweepRows(const DemGrid& grid, const LocalFrame& frame, const SweepSetup& s
     }
     return;
   }
-  if (row_begin > 0) compute_row(row_begin - 1, prev);
-  for (int r = row_begin; r < row_end; ++r) {
-    compute_row(r, cur);
-    for (int c = 0; c < w; ++c) {
-      const SweepPoint& p = cur[c];
-      if (p.sector < 0) continue;
-      handler.Post(p);
-      if (c + 1 < w && cur[c + 1].sector >= 0) handler.Edge(p, cur[c + 1]);
-      if (r > 0 && prev[c].sector >= 0) handler.Edge(prev[c], p);
-      if (r > 0 && c + 1 < w && prev[c].sector >= 0 && prev[c + 1].sector >= 0 && cur[c + 1].sector >= 0)
-        handler.Quad(prev[c], prev[c + 1], p, cur[c + 1]);
+  // The rows go out in tiles of kTileCols columns (plus the next tile's first
+  // column, for the edges and cells that join them). A handler that reports
+  // its sectors' current maxima (LowestBest) lets a tile be skipped when no
+  // point on it, posts, edges or cells, can reach them: bounded above by the
+  // tile's highest post at its nearest distance (conservatively: the earth's
+  // curvature drop at 95%, the refraction lift at the farthest distance, 1 m
+  // to spare), over its azimuth span plus a sector each side. The bound is
+  // strict, so the result (ties included) is that of the full pass.
+  constexpr int kTileCols = DemGrid::kBlock;
+  constexpr bool kCanCull = requires(const Handler& h) { h.LowestBest(0, 1); };
+  // Horizontal ENU position of post (c, r) at height 0 (as ComputeRow places
+  // posts; the tile tests need no more).
+  const auto enu_of = [&](int c, int r) {
+    if (!grid.separable) {
+      const size_t k = static_cast<size_t>(r) * w + c;
+      return Eigen::Vector2d(frame.EnuFromGeodetic({grid.lat_deg[k], grid.lon_deg[k], 0.0}).head<2>());
     }
-    std::swap(prev, cur);
+    const double lat = DegToRad(grid.lat0_deg + r * grid.dlat_deg);
+    const double sp = std::sin(lat), cp = std::cos(lat);
+    const double nr = kWgs84A / std::sqrt(1.0 - kWgs84E2 * sp * sp);
+    const double a = nr * cp;
+    const double dx = a * col_c[c] - x0, dz = nr * (1.0 - kWgs84E2) * sp - z0;
+    return Eigen::Vector2d(a * col_s[c], -sp0 * dx + cp0 * dz);
+  };
+  // Whether no point of the tile of rows [r0, r1) (and the row above) and
+  // columns [c0, c1] can reach the handler's current maxima, its highest
+  // post being hmax.
+  const auto tile_skipped = [&](int r0, int r1, int c0, int c1, float hmax) -> bool {
+    if constexpr (!kCanCull) {
+      return false;
+    } else {
+      if (!(hmax > -std::numeric_limits<float>::infinity())) return true;  // all void
+      const int rf = r0 > 0 ? r0 - 1 : r0;
+      const Eigen::Vector2d corner[4] = {enu_of(c0, rf), enu_of(c1, rf), enu_of(c1, r1 - 1), enu_of(c0, r1 - 1)};
+      // Distance from the observer (0, 0) to the quadrilateral, and its farthest corner.
+      double d_min = std::numeric_limits<double>::infinity(), d_max = 0.0;
+      double cross_sign = 0.0;
+      bool inside = true;
+      for (int i = 0; i < 4; ++i) {
+        const Eigen::Vector2d a = corner[i], b = corner[(i + 1) % 4], ab = b - a;
+        const double t = std::clamp(-a.dot(ab) / std::max(1e-12, ab.squaredNorm()), 0.0, 1.0);
+        d_min = std::min(d_min, (a + t * ab).norm());
+        d_max = std::max(d_max, a.norm());
+        const double cr = a.x() * ab.y() - a.y() * ab.x();
+        if (cross_sign == 0.0) cross_sign = cr;
+        inside = inside && cr * cross_sign > 0.0;
+      }
+      const double margin = 2.0 + 0.001 * d_min;
+      d_min -= margin;
+      d_max += margin;
+      if (inside || d_min <= 0.0) return false;
+      if (d_min > setup.max_distance_m) return true;  // every post too far
+      // The azimuth span of the corners (the tile spans less than half a turn).
+      const double a0 = std::atan2(corner[0].x(), corner[0].y());
+      double lo = 0.0, hi = 0.0;
+      for (int i = 1; i < 4; ++i) {
+        double da = std::atan2(corner[i].x(), corner[i].y()) - a0;
+        da -= 2.0 * kPi * std::round(da / (2.0 * kPi));
+        lo = std::min(lo, da), hi = std::max(hi, da);
+      }
+      if (hi - lo >= kPi) return false;
+      double az_lo = a0 + lo;
+      az_lo -= 2.0 * kPi * std::floor(az_lo / (2.0 * kPi));
+      const int n = setup.num_sectors;
+      const int first = static_cast<int>(std::floor(az_lo * inv_step + setup.sector_offset)) - 1;
+      const int count = static_cast<int>(std::ceil((hi - lo) * inv_step)) + 3;
+      if (count >= n) return false;
+      const double drop = 0.95 * d_min * d_min / (2.0 * 6.40e6);
+      const double w_bound = (hmax - o.height_m) - drop + lift_scale * d_max * d_max + 1.0;
+      const double tan_bound = w_bound >= 0.0 ? w_bound / d_min : w_bound / d_max;
+      return tan_bound < handler.LowestBest(((first % n) + n) % n, count);
+    }
+  };
+  // The posts, edges and cells of rows [r0, r1) and columns [c0, c1) (the
+  // posts of column c1 too when it is the grid's last).
+  const auto process = [&](int r0, int r1, int c0, int c1) {
+    const bool last = c1 == w - 1;
+    if (r0 > 0) compute_row(r0 - 1, prev, 1, c0, c1 + 1);
+    for (int r = r0; r < r1; ++r) {
+      compute_row(r, cur, 1, c0, c1 + 1);
+      for (int c = c0; c < (last ? c1 + 1 : c1); ++c) {
+        const SweepPoint& p = cur[c];
+        if (p.sector < 0) continue;
+        handler.Post(p);
+        if (c + 1 < w && cur[c + 1].sector >= 0) handler.Edge(p, cur[c + 1]);
+        if (r > 0 && prev[c].sector >= 0) handler.Edge(prev[c], p);
+        if (r > 0 && c + 1 < w && prev[c].sector >= 0 && prev[c + 1].sector >= 0 && cur[c + 1].sector >= 0)
+          handler.Quad(prev[c], prev[c + 1], p, cur[c + 1]);
+      }
+      std::swap(prev, cur);
+    }
+  };
+  const auto max_of = [&](int r0, int r1, int c0, int c1) {
+    if (const float* m = grid.BlockMax(r0, r1, c0, c1)) return *m;
+    float m = -std::numeric_limits<float>::infinity();
+    for (int r = r0 > 0 ? r0 - 1 : r0; r < r1; ++r) {
+      const float* row = grid.height_m.data() + static_cast<size_t>(r) * w;
+      for (int c = c0; c <= c1; ++c) m = row[c] > m ? row[c] : m;  // NaN (void) posts are skipped
+    }
+    return m;
+  };
+  // A tile that cannot be skipped is split in four, down to kMinTile posts.
+  constexpr int kMinTile = 8;
+  const auto visit = [&](auto&& self, int r0, int r1, int c0, int c1, float hmax) -> void {
+    if (tile_skipped(r0, r1, c0, c1, hmax)) return;
+    if (!kCanCull || (r1 - r0 <= kMinTile && c1 - c0 <= kMinTile)) return process(r0, r1, c0, c1);
+    const int rm = r1 - r0 > kMinTile ? r0 + (r1 - r0) / 2 : r1, cm = c1 - c0 > kMinTile ? c0 + (c1 - c0) / 2 : c1;
+    const int rows[3] = {r0, rm, r1}, cols[3] = {c0, cm, c1};
+    for (int i = 0; i < 2; ++i)
+      for (int j = 0; j < 2; ++j)
+        if (rows[i] < rows[i + 1] && cols[j] < cols[j + 1])
+          self(self, rows[i], rows[i + 1], cols[j], cols[j + 1], max_of(rows[i], rows[i + 1], cols[j], cols[j + 1]));
+  };
+  for (int c0 = 0; c0 < w - 1; c0 += kTileCols) {
+    const int c1 = std::min(w - 1, c0 + kTileCols);  // inclusive: the next tile's first column
+    const float hmax = kCanCull ? max_of(row_begin, row_end, c0, c1) : 0.0f;
+    visit(visit, row_begin, row_end, c0, c1, hmax);
   }
 }
 
@@ -265,18 +379,19 @@ std::vector<Handler> SweepGrids(const std::vector<DemGrid>& grids, const LocalFr
   const int slots = pool ? pool->size() : 1;
   std::vector<Handler> handlers;
   for (int i = 0; i < slots; ++i) handlers.push_back(make_handler());
-  constexpr int kBlockRows = 32;
+  constexpr int kBlockRows = DemGrid::kBlock;  // the tiles of DemGrid::block_max
   for (const DemGrid& grid : grids) {
     if (grid.width < 2 || grid.height < 2) continue;
     const int blocks = (grid.height + kBlockRows - 1) / kBlockRows;
+    const std::vector<double> trig = grid.separable ? ColumnTrig(grid, frame.origin().lon_deg) : std::vector<double>();
     std::vector<char> primed(slots, 0);
     ParallelFor(pool, static_cast<size_t>(blocks), [&](size_t b, int t) {
       if (!primed[t]) {
-        SweepRows(grid, frame, setup, 0, grid.height, true, handlers[t]);
+        SweepRows(grid, frame, setup, 0, grid.height, true, handlers[t], &trig);
         primed[t] = 1;
       }
       const int r0 = static_cast<int>(b) * kBlockRows;
-      SweepRows(grid, frame, setup, r0, std::min(grid.height, r0 + kBlockRows), false, handlers[t]);
+      SweepRows(grid, frame, setup, r0, std::min(grid.height, r0 + kBlockRows), false, handlers[t], &trig);
     });
   }
   return handlers;
