@@ -31,6 +31,7 @@ bench: build
 	$(BUILD)/track_bench
 	$(BUILD)/batch_bench
 	scripts/bench_process.sh $(BUILD)/horizonreg
+	scripts/bench_grass_points.sh $(BUILD)/horizonreg || [ $$? -eq 77 ]
 
 asan: test-deps
 	$(MAKE) test BUILD=build-asan CMAKE_FLAGS="-DCMAKE_BUILD_TYPE=RelWithDebInfo -DHORIZONREG_SANITIZE=ON"
