@@ -28,6 +28,7 @@ struct HorizonArgs {
   std::string plot;
   bool ridges = false;
   bool threads_given = false;  // --threads was given (else --points uses every core)
+  double max_dem_mb = 2048.0;
 };
 void AddHorizonCommand(CLI::App& app, HorizonArgs& args);
 int RunHorizon(const HorizonArgs& args);
@@ -35,6 +36,7 @@ int RunHorizon(const HorizonArgs& args);
 struct SkylineArgs {
   std::string image, json, debug;
   std::optional<double> roll;
+  double max_image_mpx = 250.0;
 };
 void AddSkylineCommand(CLI::App& app, SkylineArgs& args);
 int RunSkyline(const SkylineArgs& args);
@@ -51,6 +53,7 @@ struct RegisterArgs {
   double step = 0.1;  // finer than `horizon`'s default: each bin holds its maximum, 0.25 deg bins bias pitch
   bool no_exif = false;
   bool pinhole = false;
+  double max_image_mpx = 250.0, max_dem_mb = 2048.0;
 };
 void AddRegisterCommand(CLI::App& app, RegisterArgs& args);
 int RunRegister(const RegisterArgs& args);
@@ -64,6 +67,7 @@ struct BatchArgs {
   double max_distance = 100'000.0;
   double step = 0.1;
   bool pinhole = false, no_exif = false, no_progress = false, sea_level_fill = false;
+  double max_image_mpx = 250.0, max_dem_mb = 2048.0;
 };
 void AddBatchCommand(CLI::App& app, BatchArgs& args);
 int RunBatch(const BatchArgs& args);
@@ -72,6 +76,7 @@ struct OverlayArgs {
   std::string image, pose, landmarks, output, camera;
   std::vector<std::string> dem;
   bool no_ridges = false;
+  double max_image_mpx = 250.0;
 };
 void AddOverlayCommand(CLI::App& app, OverlayArgs& args);
 int RunOverlay(const OverlayArgs& args);

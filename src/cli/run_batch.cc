@@ -10,6 +10,7 @@
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <mutex>
 #include <set>
 #include <thread>
@@ -58,6 +59,12 @@ void AddBatchCommand(CLI::App& app, BatchArgs& a) {
   c->add_option("--max-distance", a.max_distance, "Terrain farther than this is ignored, metres")
       ->capture_default_str();
   c->add_flag("--no-progress", a.no_progress, "No progress line on a terminal");
+  c->add_option("--max-image-mpx", a.max_image_mpx, "Refuse photos larger than this, million pixels")
+      ->check(CLI::Range(0.01, 10000.0))
+      ->capture_default_str();
+  c->add_option("--max-dem-mb", a.max_dem_mb, "Refuse DEM windows that need more memory, MB")
+      ->check(CLI::Range(1.0, 1e7))
+      ->capture_default_str();
 }
 
 namespace {
@@ -69,19 +76,14 @@ std::set<std::string> ResumeOutput(const std::string& path, size_t* rows) {
   *rows = 0;
   std::error_code ec;
   if (!fs::exists(path, ec)) return done;
-  const std::string text = ReadTextFile(path, "batch output");
-  const size_t end = text.rfind('\n');
-  const size_t complete = end == std::string::npos ? 0 : end + 1;
-  if (complete < text.size()) {
-    fs::resize_file(path, complete, ec);
-    if (ec) throw IoError("batch: cannot cut the half-written last line of '" + path + "': " + ec.message());
-  }
-  size_t begin = 0;
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw IoError("batch: cannot open '" + path + "'");
+  std::string s;
+  size_t complete = 0;  // bytes up to the end of the last whole line
   int line = 0;
-  while (begin < complete) {
-    const size_t nl = text.find('\n', begin);
-    const std::string s = text.substr(begin, nl - begin);
-    begin = nl + 1;
+  while (std::getline(in, s)) {
+    if (in.eof()) break;  // no newline after it: half-written
+    complete += s.size() + 1;
     ++line;
     if (Trim(s).empty()) continue;
     nlohmann::json row;
@@ -97,21 +99,20 @@ std::set<std::string> ResumeOutput(const std::string& path, size_t* rows) {
     done.insert(row["image"].get<std::string>());
     ++*rows;
   }
+  in.close();
+  if (complete < fs::file_size(path, ec) && !ec) {
+    fs::resize_file(path, complete, ec);
+    if (ec) throw IoError("batch: cannot cut the half-written last line of '" + path + "': " + ec.message());
+  }
   return done;
 }
 
 void WriteCsv(const std::string& jsonl, const std::string& csv) {
-  const std::string text = ReadTextFile(jsonl, "batch output");
-  std::string out = BatchCsvHeader() + "\n";
-  size_t begin = 0;
-  while (begin < text.size()) {
-    size_t nl = text.find('\n', begin);
-    if (nl == std::string::npos) nl = text.size();
-    const std::string s = text.substr(begin, nl - begin);
-    begin = nl + 1;
-    if (Trim(s).empty()) continue;
-    out += BatchCsvLine(nlohmann::json::parse(s)) + "\n";
-  }
+  std::ifstream in(jsonl, std::ios::binary);
+  if (!in) throw IoError("batch: cannot open '" + jsonl + "'");
+  std::string out = BatchCsvHeader() + "\n", s;
+  while (std::getline(in, s))
+    if (!Trim(s).empty()) out += BatchCsvLine(nlohmann::json::parse(s)) + "\n";
   WriteOutput(csv, out);
 }
 
@@ -150,6 +151,8 @@ int RunBatch(const BatchArgs& a) {
     };
   }
   o.site.sea_level_fill = a.sea_level_fill;
+  o.site.max_dem_bytes = static_cast<size_t>(a.max_dem_mb * (1 << 20));
+  o.max_image_pixels = a.max_image_mpx * 1e6;
   o.site.azimuth_step_deg = a.step;
   o.site.refraction = a.refraction;
   o.site.max_distance_m = a.max_distance;

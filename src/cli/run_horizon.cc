@@ -54,6 +54,9 @@ void AddHorizonCommand(CLI::App& app, HorizonArgs& a) {
   c->add_option("-o,--output", a.output, "Output file ('-' = stdout)")->capture_default_str();
   c->add_option("--plot", a.plot, "Also draw a panorama chart to this PNG");
   c->add_flag("--ridges", a.ridges, "Also compute the inner ridge lines (JSON output and plot)");
+  c->add_option("--max-dem-mb", a.max_dem_mb, "Refuse DEM windows that need more memory, MB")
+      ->check(CLI::Range(1.0, 1e7))
+      ->capture_default_str();
 }
 
 std::string HorizonToJson(const HorizonProfile& p, const std::vector<std::vector<Ridge>>& ridges) {
@@ -146,7 +149,7 @@ struct Point {
 };
 
 std::vector<Point> ReadPoints(const std::string& path) {
-  const std::string text = ReadTextFile(path, "--points");
+  const std::string text = ReadTextFile(path, "--points", size_t{256} << 20);
   std::istringstream in(text);
   std::string line;
   std::vector<std::string> header;
@@ -212,8 +215,9 @@ int RunHorizonPoints(const HorizonArgs& a) {
   }
   const double radius = a.options.max_distance_m + spread;
   const bool shared = spread <= a.options.max_distance_m;  // a window at most twice as wide as one point's
-  const Terrain terrain(shared ? DemFilesFor(a.dem, a.dem_dir, lat0, lon0, radius)
+  Terrain terrain(shared ? DemFilesFor(a.dem, a.dem_dir, lat0, lon0, radius)
                                : DemFilesFor(a.dem, a.dem_dir, points[0].lat, points[0].lon, a.options.max_distance_m));
+  terrain.set_max_window_bytes(static_cast<size_t>(a.max_dem_mb * (1 << 20)));
   if (!shared && !a.dem_dir.empty())
     throw InvalidArgument("--points spread over " + std::to_string(static_cast<int>(spread / 1000)) +
                           " km: with --dem-dir give points within --max-distance of their centre");
@@ -296,7 +300,8 @@ int RunHorizon(const HorizonArgs& a) {
     m << "--lon " << a.lon << " is not a longitude in [-180, 360]";
     throw InvalidArgument(m.str());
   }
-  const Terrain terrain(DemFilesFor(a.dem, a.dem_dir, a.lat, a.lon, a.options.max_distance_m));
+  Terrain terrain(DemFilesFor(a.dem, a.dem_dir, a.lat, a.lon, a.options.max_distance_m));
+  terrain.set_max_window_bytes(static_cast<size_t>(a.max_dem_mb * (1 << 20)));
   TerrainWindow window = terrain.ReadWindow({a.lat, a.lon, 0.0}, a.options.max_distance_m);
   if (a.sea_level_fill) AddSeaLevel(window, {a.lat, a.lon, 0.0}, a.options.max_distance_m);
   const GeodeticPoint observer = ResolveObserver(window, a.lat, a.lon, a.agl, a.alt);

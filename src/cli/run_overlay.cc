@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT
 // `horizonreg overlay`: the AR overlay over a photo at a registered pose.
 #include <CLI/CLI.hpp>
+#include <iostream>
 #include <fstream>
 #include <nlohmann/json.hpp>
 
@@ -25,6 +26,9 @@ void AddOverlayCommand(CLI::App& app, OverlayArgs& a) {
   c->add_flag("--no-ridges", a.no_ridges, "Do not draw the inner ridge lines");
   c->add_option("--camera", a.camera,
                 "Known intrinsics (OpenCV calibration YAML/JSON or camera JSON); default: the pose file's camera");
+  c->add_option("--max-image-mpx", a.max_image_mpx, "Refuse photos larger than this, million pixels")
+      ->check(CLI::Range(0.01, 10000.0))
+      ->capture_default_str();
 }
 
 namespace {
@@ -38,7 +42,7 @@ double Number(const nlohmann::json& j, const char* key, const std::string& path)
 }  // namespace
 
 CameraPoseFile ReadPoseFile(const std::string& path) {
-  const nlohmann::json j = ParseJson(ReadTextFile(path, "pose"), "pose", path);
+  const nlohmann::json j = ParseJson(ReadTextFile(path, "pose", size_t{64} << 20), "pose", path);
   if (j.value("status", "registered") != "registered")
     throw InvalidArgument("pose: '" + path + "' holds no pose (status " + j.value("status", "") + ")");
   if (!j.contains("observer") || !j["observer"].is_object())
@@ -72,7 +76,9 @@ CameraPoseFile ReadPoseFile(const std::string& path) {
 
 int RunOverlay(const OverlayArgs& a) {
   const CameraPoseFile p = ReadPoseFile(a.pose);
-  const cv::Mat image = ReadImage(a.image);
+  std::vector<std::string> warnings;
+  const cv::Mat image = ReadImage(a.image, a.max_image_mpx * 1e6, &warnings);
+  for (const std::string& w : warnings) std::cerr << "horizonreg: warning: " << w << "\n";
   // The photo may be a resized copy of the registered one.
   const CameraIntrinsics k = a.camera.empty() ? p.intrinsics.Resized(image.cols, image.rows)
                                               : ReadCameraFile(a.camera, image.cols, image.rows);

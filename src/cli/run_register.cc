@@ -2,6 +2,7 @@
 // `horizonreg register`: camera azimuth, pitch, roll and focal length of a
 // photo from its skyline and the DEM horizon at its position.
 #include <CLI/CLI.hpp>
+#include <iostream>
 #include <chrono>
 #include <future>
 #include <nlohmann/json.hpp>
@@ -60,6 +61,12 @@ void AddRegisterCommand(CLI::App& app, RegisterArgs& a) {
   c->add_option("--json", a.json, "Write the JSON here instead of stdout");
   c->add_option("--overlay", a.overlay, "Draw the overlay at the recovered pose over the photo into this PNG");
   c->add_option("--landmarks", a.landmarks, "Named peaks for the overlay labels (GeoJSON or CSV)");
+  c->add_option("--max-image-mpx", a.max_image_mpx, "Refuse photos larger than this, million pixels")
+      ->check(CLI::Range(0.01, 10000.0))
+      ->capture_default_str();
+  c->add_option("--max-dem-mb", a.max_dem_mb, "Refuse DEM windows that need more memory, MB")
+      ->check(CLI::Range(1.0, 1e7))
+      ->capture_default_str();
 }
 
 int RunRegister(const RegisterArgs& a) {
@@ -68,7 +75,9 @@ int RunRegister(const RegisterArgs& a) {
   // Prepare: check every input before computing.
   if (a.lat.has_value() != a.lon.has_value()) throw InvalidArgument("--lat and --lon go together");
   if (a.hfov && !(*a.hfov > 0 && *a.hfov < 170)) throw InvalidArgument("--hfov must be in (0, 170) degrees");
-  const cv::Mat image = ReadImage(a.image);
+  std::vector<std::string> warnings;
+  const cv::Mat image = ReadImage(a.image, a.max_image_mpx * 1e6, &warnings);
+  for (const std::string& w : warnings) std::cerr << "horizonreg: warning: " << w << "\n";
   PhotoOptions po;
   if (!a.sensors.empty()) po.sensors = ReadSensorJson(a.sensors);
   if (!a.no_exif) po.exif = ReadExif(a.image);
@@ -89,6 +98,7 @@ int RunRegister(const RegisterArgs& a) {
   so.azimuth_step_deg = a.step;
   so.max_distance_m = a.max_distance;
   so.sea_level_fill = a.sea_level_fill;
+  so.max_dem_bytes = static_cast<size_t>(a.max_dem_mb * (1 << 20));
   so.Check();
   const std::vector<std::string> dem =
       DemFilesFor(a.dem, a.dem_dir, position.lat_deg, position.lon_deg, so.max_distance_m);

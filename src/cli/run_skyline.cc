@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: MIT
 #include <CLI/CLI.hpp>
+#include <iostream>
 #include <chrono>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -18,13 +19,18 @@ void AddSkylineCommand(CLI::App& app, SkylineArgs& a) {
   c->add_option("--json", a.json, "Write the JSON here instead of stdout");
   c->add_option("--debug", a.debug, "Draw the skyline over the photo into this PNG");
   c->add_option("--roll", a.roll, "Roll hint from an inclinometer, degrees (positive: right side down)");
+  c->add_option("--max-image-mpx", a.max_image_mpx, "Refuse photos larger than this, million pixels")
+      ->check(CLI::Range(0.01, 10000.0))
+      ->capture_default_str();
 }
 
 int RunSkyline(const SkylineArgs& a) {
   SkylineOptions o;
   o.roll_hint_deg = a.roll;
   o.Check();
-  const cv::Mat image = ReadImage(a.image);
+  std::vector<std::string> warnings;
+  const cv::Mat image = ReadImage(a.image, a.max_image_mpx * 1e6, &warnings);
+  for (const std::string& w : warnings) std::cerr << "horizonreg: warning: " << w << "\n";
   const auto t0 = std::chrono::steady_clock::now();
   const Skyline s = ExtractSkyline(image, o);
   const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();

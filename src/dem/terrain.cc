@@ -499,6 +499,20 @@ TerrainWindow Terrain::ReadWindow(const GeodeticPoint& center, double radius_m) 
   for (const Source& s : sources) windows.push_back(WindowOf(s, center, radius_m));
 
   TerrainWindow out;
+  // Bytes per post while a grid is built: height, void-fill state and
+  // scratch; projected grids also hold each post's latitude and longitude.
+  size_t bytes = 0;
+  const auto reserve = [&](size_t posts, bool separable) {
+    bytes += posts * (separable ? 10 : 30);
+    if (bytes > max_window_bytes_) {
+      std::ostringstream m;
+      m.precision(6);
+      m << "dem: the window within " << radius_m / 1000.0 << " km of (" << center.lat_deg << ", " << center.lon_deg
+        << ") needs " << bytes / (1 << 20) << " MB (" << posts / 1'000'000.0 << " million posts in one grid), more than "
+        << max_window_bytes_ / (1 << 20) << " MB allowed (--max-dem-mb): give a smaller --max-distance or a coarser DEM";
+      throw InvalidArgument(m.str());
+    }
+  };
   std::vector<bool> done(sources.size(), false);
   for (size_t i = 0; i < sources.size(); ++i) {
     if (done[i] || windows[i].empty()) continue;
@@ -517,6 +531,7 @@ TerrainWindow Terrain::ReadWindow(const GeodeticPoint& center, double radius_m) 
         done[j] = true;
       }
       DemGrid g;
+      reserve(static_cast<size_t>((c1 - c0 + 1) * (r1 - r0 + 1)), true);  // before any int conversion
       g.width = static_cast<int>(c1 - c0 + 1), g.height = static_cast<int>(r1 - r0 + 1);
       g.separable = true;
       g.dlon_deg = a.gt[1], g.dlat_deg = a.gt[5];
@@ -558,6 +573,7 @@ TerrainWindow Terrain::ReadWindow(const GeodeticPoint& center, double radius_m) 
       const PixelWindow& w = windows[i];
       DemGrid g;
       g.width = w.w(), g.height = w.h();
+      reserve(static_cast<size_t>(g.width) * g.height, false);
       g.separable = false;
       g.source = a.path;
       std::vector<float> buf(static_cast<size_t>(w.w()) * w.h());

@@ -34,6 +34,10 @@
 namespace horizonreg {
 
 inline constexpr double kMaxVoidFillPx = 200.0;
+// The memory a window may take by default (heights, positions of projected
+// grids, void-filling scratch): 2 GiB, e.g. a 100 km radius over 1" SRTM
+// (about 180 million posts) fits, a 20 GB VRT read whole does not.
+inline constexpr size_t kDefaultMaxWindowBytes = size_t{2} << 30;
 
 // The posts of all grids within a distance of a centre point.
 struct TerrainWindow {
@@ -61,7 +65,12 @@ class Terrain {
   // mosaics and fills voids. Throws InvalidArgument when no file covers the
   // centre position (observer outside every DEM) or the window holds no data
   // (all voids); IoError on read failures.
+  // A window whose grids would take more than max_window_bytes() is an
+  // InvalidArgument saying how many posts and bytes it needs, before any is
+  // read.
   TerrainWindow ReadWindow(const GeodeticPoint& center, double radius_m) const;
+  void set_max_window_bytes(size_t bytes) { max_window_bytes_ = bytes; }
+  size_t max_window_bytes() const { return max_window_bytes_; }
 
   // True if some file's extent contains the position (its data may be void).
   bool Covers(double lat_deg, double lon_deg) const;
@@ -76,6 +85,7 @@ class Terrain {
  private:
   struct Impl;
   std::unique_ptr<Impl> impl_;
+  size_t max_window_bytes_ = kDefaultMaxWindowBytes;
 };
 
 // Sea-level fill: adds a grid of 0 m heights covering `radius_m` around

@@ -34,7 +34,7 @@ void CheckPosition(const std::string& path, const std::string& where, double lat
 }  // namespace
 
 std::vector<Landmark> LoadLandmarks(const std::string& path) {
-  const std::string text = ReadTextFile(path, "landmarks");
+  const std::string text = ReadTextFile(path, "landmarks", size_t{256} << 20);
   std::vector<Landmark> out;
   const auto first = text.find_first_not_of(" \t\r\n\xEF\xBB\xBF");
   if (first != std::string::npos && text[first] == '{') {

@@ -362,7 +362,8 @@ size_t RunBatch(const std::vector<BatchItem>& items, const BatchOptions& options
       const Prepared& p = prepared[i];
       const auto p0 = std::chrono::steady_clock::now();
       try {
-        const cv::Mat image = ReadImage(it.image_path);
+        std::vector<std::string> warnings;
+        const cv::Mat image = ReadImage(it.image_path, options.max_image_pixels, &warnings);
         PhotoOptions po = options.photo;
         po.sensors = p.sensors;
         po.exif = p.exif;
@@ -374,6 +375,7 @@ size_t RunBatch(const std::vector<BatchItem>& items, const BatchOptions& options
         nlohmann::json row = RegistrationReport(*site, r, p.position.source, SecondsSince(p0) * 1000.0);
         row["image"] = it.image;
         if (!it.station.empty()) row["station"] = it.station;
+        if (!warnings.empty()) row["warnings"] = warnings;
         emit({&it, std::move(row), &image, site.get(), &r});
       } catch (const Error& e) {
         emit({&it, ErrorRow(it, error_message(e, true))});

@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "pipeline/image_io.h"
 #include "pipeline/register_photo.h"
 #include "pipeline/site.h"
 #include "util/thread_pool.h"
@@ -74,6 +75,7 @@ struct BatchOptions {
   SiteOptions site;    // step, refraction, distance (the position comes from each row)
   PhotoOptions photo;  // defaults for every photo (opening angle, pinhole, thresholds)
   bool use_exif = true;
+  double max_image_pixels = kDefaultMaxImagePixels;  // larger photos are error rows (ReadImage)
   void Check() const;
 };
 

@@ -1,9 +1,14 @@
 // SPDX-License-Identifier: MIT
 #include "pipeline/image_io.h"
 
+#include <unistd.h>
+
+#include <cstdint>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <mutex>
 #include <opencv2/imgcodecs.hpp>
 #include <vector>
 
@@ -11,7 +16,38 @@
 
 namespace horizonreg {
 
-cv::Mat ReadImage(const std::string& path) {
+std::optional<std::pair<int, int>> DeclaredImageSize(const std::vector<unsigned char>& b) {
+  const auto be16 = [&](size_t i) { return (b[i] << 8) | b[i + 1]; };
+  if (b.size() >= 24 && b[0] == 0x89 && b[1] == 'P' && b[2] == 'N' && b[3] == 'G' && b[12] == 'I' && b[13] == 'H' &&
+      b[14] == 'D' && b[15] == 'R') {
+    const auto be32 = [&](size_t i) { return (static_cast<uint32_t>(be16(i)) << 16) | static_cast<uint32_t>(be16(i + 2)); };
+    const uint32_t w = be32(16), h = be32(20);
+    if (w == 0 || h == 0 || w > 0x7fffffff || h > 0x7fffffff) return std::nullopt;
+    return std::make_pair(static_cast<int>(w), static_cast<int>(h));
+  }
+  if (b.size() < 4 || b[0] != 0xFF || b[1] != 0xD8) return std::nullopt;
+  size_t i = 2;
+  while (i + 9 < b.size()) {
+    if (b[i] != 0xFF) return std::nullopt;
+    const int marker = b[i + 1];
+    if (marker == 0xFF) {  // fill byte
+      ++i;
+      continue;
+    }
+    if (marker == 0xD8 || (marker >= 0xD0 && marker <= 0xD7) || marker == 0x01) {  // no length
+      i += 2;
+      continue;
+    }
+    const size_t length = be16(i + 2);
+    const bool sof = marker >= 0xC0 && marker <= 0xCF && marker != 0xC4 && marker != 0xC8 && marker != 0xCC;
+    if (sof) return std::make_pair(be16(i + 7), be16(i + 5));
+    if (marker == 0xDA || length < 2) return std::nullopt;  // scan data before a frame header
+    i += 2 + length;
+  }
+  return std::nullopt;
+}
+
+cv::Mat ReadImage(const std::string& path, double max_pixels, std::vector<std::string>* warnings) {
   std::error_code ec;
   if (!std::filesystem::is_regular_file(path, ec)) throw IoError("image: cannot open '" + path + "': no such file");
   std::ifstream f(path, std::ios::binary);
@@ -26,13 +62,48 @@ cv::Mat ReadImage(const std::string& path) {
       eoi = eoi || (bytes[i] == 0xFF && bytes[i + 1] == 0xD9);
     if (!eoi) throw IoError("image: '" + path + "' is a truncated JPEG (no end-of-image marker)");
   }
+  if (const auto size = DeclaredImageSize(bytes);
+      size && static_cast<double>(size->first) * size->second > max_pixels) {
+    char m[160];
+    std::snprintf(m, sizeof(m), "%d x %d = %.0f million pixels, more than the %.0f million allowed (--max-image-mpx)",
+                  size->first, size->second, size->first * 1e-6 * size->second, max_pixels * 1e-6);
+    throw InvalidArgument("image: '" + path + "' is " + m);
+  }
   cv::Mat image;
-  try {
-    // IMREAD_COLOR applies the EXIF orientation (phones store portrait photos
-    // sideways with a rotation tag) and gives 8-bit BGR for any input depth.
-    image = cv::imdecode(bytes, cv::IMREAD_COLOR);
-  } catch (const cv::Exception&) {
-    image.release();  // reported below with the file name
+  // The codec libraries print their warnings ("Corrupt JPEG data: ...") on
+  // the standard error themselves: they are caught there and returned in our
+  // words. The redirection is process-wide, so decodes take turns.
+  static std::mutex stderr_mutex;
+  std::string captured;
+  {
+    std::lock_guard<std::mutex> lock(stderr_mutex);
+    std::fflush(stderr);
+    FILE* sink = std::tmpfile();
+    const int saved = sink ? ::dup(STDERR_FILENO) : -1;
+    const bool redirected = saved >= 0 && ::dup2(::fileno(sink), STDERR_FILENO) >= 0;
+    try {
+      // IMREAD_COLOR applies the EXIF orientation (phones store portrait photos
+      // sideways with a rotation tag) and gives 8-bit BGR for any input depth.
+      image = cv::imdecode(bytes, cv::IMREAD_COLOR);
+    } catch (const cv::Exception&) {
+      image.release();  // reported below with the file name
+    }
+    if (redirected) {
+      std::fflush(stderr);
+      ::dup2(saved, STDERR_FILENO);
+      std::rewind(sink);
+      char buf[512];
+      size_t n;
+      while ((n = std::fread(buf, 1, sizeof(buf), sink)) > 0 && captured.size() < 4096) captured.append(buf, n);
+    }
+    if (saved >= 0) ::close(saved);
+    if (sink) std::fclose(sink);
+  }
+  if (!captured.empty() && warnings) {
+    for (char& c : captured)
+      if (c == '\n' || c == '\r') c = ' ';
+    while (!captured.empty() && captured.back() == ' ') captured.pop_back();
+    warnings->push_back("image: '" + path + "' was decoded with errors (" + captured.substr(0, 200) + ")");
   }
   if (image.empty()) throw IoError("image: '" + path + "' is not a readable image");
   if (image.type() != CV_8UC3) throw IoError("image: '" + path + "' has an unsupported pixel type");

@@ -3,14 +3,32 @@
 #pragma once
 
 #include <opencv2/core.hpp>
+#include <optional>
 #include <string>
+#include <utility>
+#include <vector>
 
 namespace horizonreg {
+
+// Photos larger than this many pixels are refused before decoding (250
+// million: a 3-byte BGR copy of 750 MB; the largest camera sensors have 100-
+// 200 million).
+inline constexpr double kDefaultMaxImagePixels = 250e6;
 
 // Decodes an image file (JPEG, PNG, TIFF, ... as OpenCV reads them) to 8-bit
 // BGR, applying the EXIF orientation. Throws IoError naming the file when it
 // is missing, empty, truncated (a JPEG without its end marker) or not a
-// decodable image. Thread-safe.
-cv::Mat ReadImage(const std::string& path);
+// decodable image; InvalidArgument when a JPEG's or PNG's header declares
+// more than max_pixels pixels (checked before any pixel is decoded; other
+// formats are bounded by OpenCV's own limit, 2^30). What the codec libraries
+// print while decoding (a corrupt JPEG's "premature end of data segment") is
+// kept from the standard error and, when `warnings` is given, added to it as
+// one line naming the file. Thread-safe.
+cv::Mat ReadImage(const std::string& path, double max_pixels = kDefaultMaxImagePixels,
+                  std::vector<std::string>* warnings = nullptr);
+
+// The width and height a JPEG (its first frame header) or PNG (IHDR)
+// declares, or nullopt for other or malformed data.
+std::optional<std::pair<int, int>> DeclaredImageSize(const std::vector<unsigned char>& bytes);
 
 }  // namespace horizonreg

@@ -44,7 +44,8 @@ Site::Site(const std::vector<std::string>& dem, double lat, double lon, const Si
   options_.Check();
   CheckPosition(lat, lon);
   const auto t0 = std::chrono::steady_clock::now();
-  const Terrain terrain(dem);
+  Terrain terrain(dem);
+  terrain.set_max_window_bytes(options_.max_dem_bytes);
   window_ = terrain.ReadWindow({lat, lon, 0.0}, options_.max_distance_m);
   if (options_.sea_level_fill) AddSeaLevel(window_, {lat, lon, 0.0}, options_.max_distance_m);
   load_ms_ = MsSince(t0);

@@ -31,6 +31,7 @@ struct SiteOptions {
   double azimuth_step_deg = kRegistrationStepDeg;
   double refraction = kDefaultRefraction;
   bool sea_level_fill = false;  // the sea at 0 m where no DEM file has data (AddSeaLevel)
+  size_t max_dem_bytes = kDefaultMaxWindowBytes;  // the DEM window's memory bound (Terrain::ReadWindow)
   HorizonOptions horizon_options() const;  // the step, refraction and distance above
   void Check() const;  // Throws InvalidArgument naming the field.
 };

@@ -50,7 +50,7 @@ SensorReading ParseSensorJson(const std::string& text, const std::string& source
   return r;
 }
 
-SensorReading ReadSensorJson(const std::string& path) { return ParseSensorJson(ReadTextFile(path, "sensors"), path); }
+SensorReading ReadSensorJson(const std::string& path) { return ParseSensorJson(ReadTextFile(path, "sensors", size_t{16} << 20), path); }
 
 namespace {
 
@@ -128,8 +128,19 @@ std::optional<SensorReading> SensorLog::ForFrame(int frame, double fps) const {
 }
 
 SensorLog ReadSensorLog(const std::string& path) {
-  const std::string text = ReadTextFile(path, "sensors");
+  const std::string text = ReadTextFile(path, "sensors", kMaxSensorLogBytes);
   SensorLog log;
+  size_t skipped = 0;
+  const auto warn = [&](std::string w) {
+    if (log.warnings.size() < kMaxSensorLogWarnings) log.warnings.push_back(std::move(w));
+    else ++skipped;
+  };
+  const auto add = [&](const SensorLogEntry& e) {
+    if (log.entries.size() >= kMaxSensorLogRows)
+      throw InvalidArgument("sensors: '" + path + "' has more than " + std::to_string(kMaxSensorLogRows) +
+                            " rows; split the log");
+    log.entries.push_back(e);
+  };
   const auto first = text.find_first_not_of(" \t\r\n");
   if (first != std::string::npos && text[first] == '[') {
     const nlohmann::json j = ParseJson(text, "sensors", path);
@@ -141,9 +152,10 @@ SensorLog ReadSensorLog(const std::string& path) {
         if (j[i].contains("frame") && j[i]["frame"].is_number_integer()) e.frame = j[i]["frame"].get<int>();
         if (j[i].contains("time_s") && j[i]["time_s"].is_number()) e.time_s = j[i]["time_s"].get<double>();
         if (!e.frame && !e.time_s) throw InvalidArgument("no frame or time_s");
-        log.entries.push_back(e);
+        add(e);
       } catch (const InvalidArgument& ex) {
-        log.warnings.push_back("sensors: '" + path + "' element " + std::to_string(i) + " skipped: " + ex.what());
+        if (log.entries.size() >= kMaxSensorLogRows) throw;
+        warn("sensors: '" + path + "' element " + std::to_string(i) + " skipped: " + ex.what());
       }
     }
   } else {
@@ -185,7 +197,7 @@ SensorLog ReadSensorLog(const std::string& path) {
       else if (roll && !(std::isfinite(*roll) && std::abs(*roll) <= 180))
         why = "bad inclinometer_roll_deg";
       if (!why.empty()) {
-        log.warnings.push_back("sensors: '" + path + "' line " + std::to_string(number) + " skipped: " + why);
+        warn("sensors: '" + path + "' line " + std::to_string(number) + " skipped: " + why);
         continue;
       }
       SensorLogEntry e;
@@ -194,9 +206,10 @@ SensorLog ReadSensorLog(const std::string& path) {
       if (yaw) e.reading.compass_deg = WrapAzimuthDeg(*yaw);
       e.reading.pitch_deg = pitch;
       e.reading.roll_deg = roll;
-      log.entries.push_back(e);
+      add(e);
     }
   }
+  if (skipped > 0) log.warnings.push_back("sensors: '" + path + "': " + std::to_string(skipped) + " more rows skipped");
   if (log.entries.empty()) throw InvalidArgument("sensors: '" + path + "' has no usable reading");
   return log;
 }
@@ -232,7 +245,7 @@ void SensorCalibration::Save(const std::string& path) const {
 }
 
 SensorCalibration SensorCalibration::Load(const std::string& path) {
-  const nlohmann::json j = ParseJson(ReadTextFile(path, "sensors: calibration"), "sensors: calibration", path);
+  const nlohmann::json j = ParseJson(ReadTextFile(path, "sensors: calibration", size_t{16} << 20), "sensors: calibration", path);
   SensorCalibration c;
   auto get = [&](const char* k, double& v) {
     if (!j.contains(k) || !j[k].is_number() || !std::isfinite(j[k].get<double>()))

@@ -62,6 +62,12 @@ struct SensorLog {
 // hold NaN or out-of-range values are skipped with a warning. Throws IoError
 // if the file cannot be read, InvalidArgument naming the file if it has
 // neither a frame nor a time column or no usable row at all.
+// Bounds: a log of at most kMaxSensorLogBytes and kMaxSensorLogRows rows
+// (InvalidArgument beyond, before memory runs out); at most kMaxSensorLogWarnings
+// warnings are kept (and a last one counting the rest).
+inline constexpr size_t kMaxSensorLogBytes = size_t{64} << 20;
+inline constexpr size_t kMaxSensorLogRows = 1'000'000;  // 9 hours at 30 fps
+inline constexpr size_t kMaxSensorLogWarnings = 100;
 SensorLog ReadSensorLog(const std::string& path);
 
 // Offsets that turn raw compass/inclinometer readings into the pose vision

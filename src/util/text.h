@@ -62,10 +62,18 @@ inline std::vector<std::string> SplitCsvLine(const std::string& line) {
   return out;
 }
 
-// The whole file as text. Throws IoError "<what>: cannot open '<path>'".
-inline std::string ReadTextFile(const std::string& path, const std::string& what) {
+// The whole file as text. Throws IoError "<what>: cannot open '<path>'", and
+// InvalidArgument when the file is larger than max_bytes (checked before
+// reading: input files are bounded, never read into an out-of-memory kill).
+inline std::string ReadTextFile(const std::string& path, const std::string& what, size_t max_bytes = size_t{1} << 30) {
   std::ifstream f(path, std::ios::binary);
   if (!f) throw IoError(what + ": cannot open '" + path + "'");
+  f.seekg(0, std::ios::end);
+  const std::streamoff size = f.tellg();
+  if (size > 0 && static_cast<size_t>(size) > max_bytes)
+    throw InvalidArgument(what + ": '" + path + "' is " + std::to_string(size >> 20) + " MB, more than the " +
+                          std::to_string(max_bytes >> 20) + " MB such a file may have");
+  f.seekg(0, std::ios::beg);
   std::stringstream ss;
   ss << f.rdbuf();
   if (f.bad()) throw IoError(what + ": cannot read '" + path + "'");
