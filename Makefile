@@ -4,7 +4,7 @@ BUILD ?= build
 JOBS ?= $(shell nproc)
 CMAKE_FLAGS ?= -DCMAKE_BUILD_TYPE=Release
 
-.PHONY: all deps test-deps build demo test bench asan clean
+.PHONY: all deps test-deps build demo test bench asan asan-unit tsan clean
 
 all: build
 
@@ -36,5 +36,20 @@ bench: build
 asan: test-deps
 	$(MAKE) test BUILD=build-asan CMAKE_FLAGS="-DCMAKE_BUILD_TYPE=RelWithDebInfo -DHORIZONREG_SANITIZE=ON"
 
+# The unit tests (every module's *_test) under AddressSanitizer + UBSan, and
+# the threaded code's tests under ThreadSanitizer: what .ci/run adds to `make test`.
+SAN_FLAGS = -DCMAKE_BUILD_TYPE=RelWithDebInfo -DHORIZONREG_PYTHON=OFF
+TSAN_TESTS = util_thread_pool_test horizon_horizon_test match_match_test pipeline_register_photo_test pipeline_batch_test
+asan-unit: test-deps
+	cmake -S . -B build-asan $(SAN_FLAGS) -DHORIZONREG_SANITIZE=ON
+	cmake --build build-asan -j $(JOBS)
+	cd build-asan && UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 ctest --output-on-failure -j $(JOBS) -R '_test$$'
+
+tsan: test-deps
+	cmake -S . -B build-tsan $(SAN_FLAGS) -DHORIZONREG_TSAN=ON
+	cmake --build build-tsan -j $(JOBS) --target $(TSAN_TESTS)
+	cd build-tsan && TSAN_OPTIONS=halt_on_error=1:second_deadlock_stack=1:suppressions=$(CURDIR)/tests/tsan.supp ctest --output-on-failure \
+	  -R 'util/thread_pool_test|horizon/horizon_test|match/match_test|pipeline/register_photo_test|pipeline/batch_test'
+
 clean:
-	rm -rf $(BUILD) build-asan out
+	rm -rf $(BUILD) build-asan build-tsan out

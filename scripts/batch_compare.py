@@ -41,18 +41,14 @@ def diff(a, b, path=""):
 
 def photos(shared, sets):
     out = []  # (set, dem, image, lat, lon, height option, value)
-    if "dev" in sets:
-        d = os.path.join(shared, "scenes", "dev")
+    for name, folder, key in (("dev", ("scenes", "dev"), "agl_m"), ("real", ("real", "columbia"), "alt_m")):
+        if name not in sets:
+            continue
+        d = os.path.join(shared, *folder)
         for f in sorted(os.listdir(d)):
             if f.endswith(".truth.json"):
                 t = json.load(open(os.path.join(d, f)))
-                out.append(("dev", t["dem"], os.path.join(d, t["image"]), t["lat"], t["lon"], "agl_m", t["agl_m"]))
-    if "real" in sets:
-        d = os.path.join(shared, "real", "columbia")
-        for f in sorted(os.listdir(d)):
-            if f.endswith(".truth.json"):
-                t = json.load(open(os.path.join(d, f)))
-                out.append(("real", t["dem"], os.path.join(d, t["image"]), t["lat"], t["lon"], "alt_m", t["alt_m"]))
+                out.append((name, t["dem"], os.path.join(d, t["image"]), t["lat"], t["lon"], key, t[key]))
     return out
 
 

@@ -54,4 +54,16 @@ int RunGuarded(const std::function<int()>& command) {
   }
 }
 
+void AddMaxImageOption(CLI::App& command, double& max_image_mpx) {
+  command.add_option("--max-image-mpx", max_image_mpx, "Refuse photos larger than this, million pixels")
+      ->check(CLI::Range(0.01, 10000.0))
+      ->capture_default_str();
+}
+
+void AddMaxDemOption(CLI::App& command, double& max_dem_mb) {
+  command.add_option("--max-dem-mb", max_dem_mb, "Refuse DEM windows that need more memory, MB")
+      ->check(CLI::Range(1.0, 1e7))
+      ->capture_default_str();
+}
+
 }  // namespace horizonreg::cli

@@ -21,4 +21,10 @@ int ParseOrExit(CLI::App& app, int argc, char** argv);
 // code.
 int RunGuarded(const std::function<int()>& command);
 
+// The resource limits every command that reads photos or DEMs takes:
+// --max-image-mpx (photos larger than this many million pixels are refused)
+// and --max-dem-mb (DEM windows needing more memory are refused).
+void AddMaxImageOption(CLI::App& command, double& max_image_mpx);
+void AddMaxDemOption(CLI::App& command, double& max_dem_mb);
+
 }  // namespace horizonreg::cli

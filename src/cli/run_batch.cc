@@ -16,6 +16,7 @@
 #include <thread>
 
 #include "cli/commands.h"
+#include "cli/guard.h"
 #include "cli/image_io.h"
 #include "cli/output.h"
 #include "dem/tiles.h"
@@ -59,12 +60,8 @@ void AddBatchCommand(CLI::App& app, BatchArgs& a) {
   c->add_option("--max-distance", a.max_distance, "Terrain farther than this is ignored, metres")
       ->capture_default_str();
   c->add_flag("--no-progress", a.no_progress, "No progress line on a terminal");
-  c->add_option("--max-image-mpx", a.max_image_mpx, "Refuse photos larger than this, million pixels")
-      ->check(CLI::Range(0.01, 10000.0))
-      ->capture_default_str();
-  c->add_option("--max-dem-mb", a.max_dem_mb, "Refuse DEM windows that need more memory, MB")
-      ->check(CLI::Range(1.0, 1e7))
-      ->capture_default_str();
+  AddMaxImageOption(*c, a.max_image_mpx);
+  AddMaxDemOption(*c, a.max_dem_mb);
 }
 
 namespace {

@@ -11,6 +11,7 @@
 #include <thread>
 
 #include "cli/commands.h"
+#include "cli/guard.h"
 #include "cli/output.h"
 #include "dem/tiles.h"
 #include "util/errors.h"
@@ -54,9 +55,7 @@ void AddHorizonCommand(CLI::App& app, HorizonArgs& a) {
   c->add_option("-o,--output", a.output, "Output file ('-' = stdout)")->capture_default_str();
   c->add_option("--plot", a.plot, "Also draw a panorama chart to this PNG");
   c->add_flag("--ridges", a.ridges, "Also compute the inner ridge lines (JSON output and plot)");
-  c->add_option("--max-dem-mb", a.max_dem_mb, "Refuse DEM windows that need more memory, MB")
-      ->check(CLI::Range(1.0, 1e7))
-      ->capture_default_str();
+  AddMaxDemOption(*c, a.max_dem_mb);
 }
 
 std::string HorizonToJson(const HorizonProfile& p, const std::vector<std::vector<Ridge>>& ridges) {
@@ -149,42 +148,22 @@ struct Point {
 };
 
 std::vector<Point> ReadPoints(const std::string& path) {
-  const std::string text = ReadTextFile(path, "--points", size_t{256} << 20);
-  std::istringstream in(text);
-  std::string line;
-  std::vector<std::string> header;
+  const std::string what = "--points";
   std::vector<Point> out;
-  int n = 0;
-  const auto bad = [&](const std::string& why) {
-    throw InvalidArgument("--points '" + path + "', line " + std::to_string(n) + ": " + why);
-  };
-  while (std::getline(in, line)) {
-    ++n;
-    if (Trim(line).empty() || Trim(line)[0] == '#') continue;
-    std::vector<std::string> cells = SplitCsvLine(line);
-    for (auto& c : cells) c = Trim(c);
-    if (header.empty()) {
-      header = cells;
-      for (const auto& h : header)
-        if (h != "lat" && h != "lon" && h != "id" && h != "name" && h != "agl_m" && h != "alt_m")
-          bad("unknown column '" + h + "' (known: lat, lon, id or name, agl_m, alt_m)");
-      if (std::find(header.begin(), header.end(), "lat") == header.end() ||
-          std::find(header.begin(), header.end(), "lon") == header.end())
-        bad("the header needs lat and lon columns");
-      continue;
-    }
-    if (cells.size() != header.size()) bad(std::to_string(cells.size()) + " cells, the header has " + std::to_string(header.size()));
+  for (const auto& [n, r] : ReadCsvRecords(ReadTextFile(path, what, size_t{256} << 20), what, path,
+                                           {"lat", "lon", "id", "name", "agl_m", "alt_m"})) {
+    const auto bad = [&, n = n](const std::string& why) {
+      throw InvalidArgument(what + " '" + path + "', line " + std::to_string(n) + ": " + why);
+    };
     Point p;
     p.id = std::to_string(out.size() + 1);
-    for (size_t i = 0; i < cells.size(); ++i) {
-      const std::string& h = header[i];
+    for (const auto& [h, cell] : r) {
       if (h == "id" || h == "name") {
-        if (!cells[i].empty()) p.id = cells[i];
+        p.id = cell;
         continue;
       }
-      if (cells[i].empty()) continue;
-      const auto v = ParseDouble(cells[i]);
-      if (!v || !std::isfinite(*v)) bad(h + " '" + cells[i] + "' is not a number");
+      const auto v = ParseDouble(cell);
+      if (!v || !std::isfinite(*v)) bad(h + " '" + cell + "' is not a number");
       if (h == "lat") p.lat = *v;
       if (h == "lon") p.lon = *v;
       if (h == "agl_m") p.agl = *v;
@@ -194,7 +173,7 @@ std::vector<Point> ReadPoints(const std::string& path) {
     if (p.agl && p.alt) bad("give agl_m or alt_m, not both");
     out.push_back(p);
   }
-  if (out.empty()) throw InvalidArgument("--points '" + path + "': no points");
+  if (out.empty()) throw InvalidArgument(what + " '" + path + "': no points");
   return out;
 }
 

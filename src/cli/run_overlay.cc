@@ -6,6 +6,7 @@
 #include <nlohmann/json.hpp>
 
 #include "cli/commands.h"
+#include "cli/guard.h"
 #include "cli/image_io.h"
 #include "pipeline/site.h"
 #include "overlay/overlay.h"
@@ -26,9 +27,7 @@ void AddOverlayCommand(CLI::App& app, OverlayArgs& a) {
   c->add_flag("--no-ridges", a.no_ridges, "Do not draw the inner ridge lines");
   c->add_option("--camera", a.camera,
                 "Known intrinsics (OpenCV calibration YAML/JSON or camera JSON); default: the pose file's camera");
-  c->add_option("--max-image-mpx", a.max_image_mpx, "Refuse photos larger than this, million pixels")
-      ->check(CLI::Range(0.01, 10000.0))
-      ->capture_default_str();
+  AddMaxImageOption(*c, a.max_image_mpx);
 }
 
 namespace {

@@ -9,6 +9,7 @@
 #include <memory>
 
 #include "cli/commands.h"
+#include "cli/guard.h"
 #include "cli/image_io.h"
 #include "cli/output.h"
 #include "dem/tiles.h"
@@ -61,12 +62,8 @@ void AddRegisterCommand(CLI::App& app, RegisterArgs& a) {
   c->add_option("--json", a.json, "Write the JSON here instead of stdout");
   c->add_option("--overlay", a.overlay, "Draw the overlay at the recovered pose over the photo into this PNG");
   c->add_option("--landmarks", a.landmarks, "Named peaks for the overlay labels (GeoJSON or CSV)");
-  c->add_option("--max-image-mpx", a.max_image_mpx, "Refuse photos larger than this, million pixels")
-      ->check(CLI::Range(0.01, 10000.0))
-      ->capture_default_str();
-  c->add_option("--max-dem-mb", a.max_dem_mb, "Refuse DEM windows that need more memory, MB")
-      ->check(CLI::Range(1.0, 1e7))
-      ->capture_default_str();
+  AddMaxImageOption(*c, a.max_image_mpx);
+  AddMaxDemOption(*c, a.max_dem_mb);
 }
 
 int RunRegister(const RegisterArgs& a) {

@@ -6,6 +6,7 @@
 #include <nlohmann/json.hpp>
 
 #include "cli/commands.h"
+#include "cli/guard.h"
 #include "cli/image_io.h"
 #include "cli/output.h"
 #include "skyline/skyline.h"
@@ -19,9 +20,7 @@ void AddSkylineCommand(CLI::App& app, SkylineArgs& a) {
   c->add_option("--json", a.json, "Write the JSON here instead of stdout");
   c->add_option("--debug", a.debug, "Draw the skyline over the photo into this PNG");
   c->add_option("--roll", a.roll, "Roll hint from an inclinometer, degrees (positive: right side down)");
-  c->add_option("--max-image-mpx", a.max_image_mpx, "Refuse photos larger than this, million pixels")
-      ->check(CLI::Range(0.01, 10000.0))
-      ->capture_default_str();
+  AddMaxImageOption(*c, a.max_image_mpx);
 }
 
 int RunSkyline(const SkylineArgs& a) {

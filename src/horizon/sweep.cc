@@ -1,6 +1,8 @@
 // SPDX-License-Identifier: MIT
 #include "horizon/sweep.h"
 
+#include "util/vector_clones.h"
+
 namespace horizonreg::internal {
 
 namespace {
@@ -70,7 +72,7 @@ inline void ComputeRowImpl(const RowInput& in, RowScratch& out) {
 
 }  // namespace
 
-__attribute__((target_clones("avx2", "default"))) void ComputeRow(const RowInput& in, RowScratch& out) {
+HR_VECTOR_CLONES void ComputeRow(const RowInput& in, RowScratch& out) {
   const bool unit = in.stride == 1;
   if (in.post_sin_lat == nullptr) {
     unit ? ComputeRowImpl<true, true>(in, out) : ComputeRowImpl<true, false>(in, out);

@@ -40,11 +40,11 @@ std::vector<std::pair<int, Record>> RecordsFromJson(const std::string& what, con
                                                     nlohmann::json root, const std::vector<std::string>& known,
                                                     const std::string& json_key) {
   std::vector<std::pair<int, Record>> out;
-  const auto check_column = [&](const std::string& name, int line) {
+  const auto check_column = [&](const std::string& name, int entry) {
     if (std::find(known.begin(), known.end(), name) == known.end()) {
       std::string list;
       for (const auto& k : known) list += (list.empty() ? "" : ", ") + k;
-      Bad(what, path, line, "unknown column '" + name + "' (known: " + list + ")");
+      Bad(what, path, 0, "entry " + std::to_string(entry) + ": unknown key '" + name + "' (known: " + list + ")");
     }
   };
   if (root.is_object() && root.contains(json_key)) root = root[json_key];
@@ -55,7 +55,7 @@ std::vector<std::pair<int, Record>> RecordsFromJson(const std::string& what, con
     if (!o.is_object()) Bad(what, path, 0, "entry " + std::to_string(index) + " is not an object");
     Record r;
     for (const auto& [k, v] : o.items()) {
-      check_column(k, 0);
+      check_column(k, index);
       if (v.is_null()) continue;
       if (v.is_string()) r[k] = v.get<std::string>();
       else if (v.is_number()) r[k] = v.dump();
@@ -71,45 +71,10 @@ std::vector<std::pair<int, Record>> RecordsFromJson(const std::string& what, con
 std::vector<std::pair<int, Record>> ReadRecords(const std::string& what, const std::string& path,
                                                 const std::vector<std::string>& known, const std::string& json_key) {
   const std::string text = ReadTextFile(path, what);
-  std::vector<std::pair<int, Record>> out;
-  const auto check_column = [&](const std::string& name, int line) {
-    if (std::find(known.begin(), known.end(), name) == known.end()) {
-      std::string list;
-      for (const auto& k : known) list += (list.empty() ? "" : ", ") + k;
-      Bad(what, path, line, "unknown column '" + name + "' (known: " + list + ")");
-    }
-  };
-  size_t first = text.find_first_not_of(" \t\r\n");
+  const size_t first = text.find_first_not_of(" \t\r\n");
   if (first != std::string::npos && (text[first] == '[' || text[first] == '{'))
     return RecordsFromJson(what, path, ParseJson(text, what, path), known, json_key);
-  std::istringstream in(text);
-  std::string line;
-  std::vector<std::string> header;
-  int n = 0;
-  while (std::getline(in, line)) {
-    ++n;
-    if (Trim(line).empty() || Trim(line)[0] == '#') continue;
-    std::vector<std::string> cells = SplitCsvLine(line);
-    for (auto& c : cells) c = Trim(c);
-    if (header.empty()) {
-      if (n == 1 && line.size() >= 3 && static_cast<unsigned char>(line[0]) == 0xEF) cells[0] = Trim(cells[0].substr(3));
-      header = cells;
-      std::set<std::string> seen;
-      for (const auto& h : header) {
-        check_column(h, n);
-        if (!seen.insert(h).second) Bad(what, path, n, "column '" + h + "' appears twice");
-      }
-      continue;
-    }
-    if (cells.size() != header.size())
-      Bad(what, path, n, std::to_string(cells.size()) + " cells, the header has " + std::to_string(header.size()));
-    Record r;
-    for (size_t i = 0; i < cells.size(); ++i)
-      if (!cells[i].empty()) r[header[i]] = cells[i];
-    out.emplace_back(n, std::move(r));
-  }
-  if (header.empty()) Bad(what, path, 0, "empty (expected a header line)");
-  return out;
+  return ReadCsvRecords(text, what, path, known);
 }
 
 std::optional<double> Number(const std::string& what, const std::string& path, int line, const Record& r,

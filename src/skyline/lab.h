@@ -12,15 +12,7 @@
 #include <cstdint>
 #include <opencv2/core.hpp>
 
-// Loops over pixels marked HR_VECTOR_CLONES are compiled twice on x86-64,
-// for the baseline (SSE2) and for AVX2, and the loader picks the one the CPU
-// runs (GCC's target_clones): 8 floats per instruction instead of 4. No FMA,
-// so both give the same bits.
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
-#define HR_VECTOR_CLONES __attribute__((target_clones("avx2", "default")))
-#else
-#define HR_VECTOR_CLONES
-#endif
+#include "util/vector_clones.h"  // HR_VECTOR_CLONES on the per-pixel loops
 
 namespace horizonreg {
 

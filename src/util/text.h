@@ -2,12 +2,15 @@
 // Small text helpers for the CSV and number parsing of input files.
 #pragma once
 
+#include <algorithm>
 #include <cctype>
 #include <cmath>
 #include <fstream>
+#include <map>
 #include <optional>
 #include <sstream>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "util/errors.h"
@@ -78,6 +81,52 @@ inline std::string ReadTextFile(const std::string& path, const std::string& what
   ss << f.rdbuf();
   if (f.bad()) throw IoError(what + ": cannot read '" + path + "'");
   return ss.str();
+}
+
+// A CSV table with a header line: (line number, column -> cell) per row,
+// empty cells left out; blank lines and lines starting with '#' skipped, a
+// UTF-8 byte-order mark dropped, cells trimmed. Throws InvalidArgument
+// "<what> '<path>', line N: ..." for a column not in `known` (when `known` is
+// not empty), a column named twice, or a row whose cell count differs from the
+// header's.
+inline std::vector<std::pair<int, std::map<std::string, std::string>>> ReadCsvRecords(
+    const std::string& text, const std::string& what, const std::string& path, const std::vector<std::string>& known) {
+  std::vector<std::pair<int, std::map<std::string, std::string>>> out;
+  std::istringstream in(text);
+  std::string line;
+  std::vector<std::string> header;
+  int n = 0;
+  const auto bad = [&](const std::string& why) {
+    throw InvalidArgument(what + " '" + path + "', line " + std::to_string(n) + ": " + why);
+  };
+  while (std::getline(in, line)) {
+    ++n;
+    if (n == 1 && line.size() >= 3 && line.compare(0, 3, "\xEF\xBB\xBF") == 0) line.erase(0, 3);
+    if (Trim(line).empty() || Trim(line)[0] == '#') continue;
+    std::vector<std::string> cells = SplitCsvLine(line);
+    for (auto& c : cells) c = Trim(c);
+    if (header.empty()) {
+      header = cells;
+      for (size_t i = 0; i < header.size(); ++i) {
+        if (!known.empty() && std::find(known.begin(), known.end(), header[i]) == known.end()) {
+          std::string list;
+          for (const auto& k : known) list += (list.empty() ? "" : ", ") + k;
+          bad("unknown column '" + header[i] + "' (known: " + list + ")");
+        }
+        if (std::find(header.begin(), header.begin() + i, header[i]) != header.begin() + i)
+          bad("column '" + header[i] + "' appears twice");
+      }
+      continue;
+    }
+    if (cells.size() != header.size())
+      bad(std::to_string(cells.size()) + " cells, the header has " + std::to_string(header.size()));
+    std::map<std::string, std::string> r;
+    for (size_t i = 0; i < cells.size(); ++i)
+      if (!cells[i].empty()) r[header[i]] = cells[i];
+    out.emplace_back(n, std::move(r));
+  }
+  if (header.empty()) throw InvalidArgument(what + " '" + path + "': empty (expected a header line)");
+  return out;
 }
 
 }  // namespace horizonreg

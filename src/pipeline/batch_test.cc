@@ -1,0 +1,141 @@
+// SPDX-License-Identifier: MIT
+#include "pipeline/batch.h"
+
+#include "pipeline/report.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <mutex>
+#include <opencv2/imgcodecs.hpp>
+
+#include "render/render.h"
+#include "util/errors.h"
+
+namespace horizonreg {
+namespace {
+
+namespace fs = std::filesystem;
+
+class BatchTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir = fs::temp_directory_path() / ("hr_batch_" + std::to_string(::getpid()));
+    fs::create_directories(dir);
+  }
+  void TearDown() override { fs::remove_all(dir); }
+  void Write(const std::string& name, const std::string& text) { std::ofstream(dir / name) << text; }
+  fs::path dir;
+};
+
+TEST_F(BatchTest, ReadsCsvAndJsonManifestsWithStations) {
+  Write("stations.csv", "station,lat,lon,agl_m,hfov_deg\ncam1,46.0,8.0,1.7,50\n");
+  Write("m.csv", "image,station,lat,lon,alt_m\na.jpg,cam1,,,\nsub/b.jpg,,46.1,8.1,900\n\"c, d.jpg\",cam1,,,\n");
+  const auto stations = ReadStations((dir / "stations.csv").string());
+  const auto items = ReadManifest((dir / "m.csv").string(), stations);
+  ASSERT_EQ(items.size(), 3u);
+  EXPECT_EQ(items[0].image, "a.jpg");
+  EXPECT_EQ(items[0].image_path, (dir / "a.jpg").string());
+  EXPECT_EQ(items[0].lat, 46.0);
+  EXPECT_EQ(items[0].agl_m, 1.7);
+  EXPECT_EQ(items[0].hfov_deg, 50.0);
+  EXPECT_EQ(items[1].alt_m, 900.0);
+  EXPECT_EQ(items[2].image, "c, d.jpg");
+  Write("m.json", R"({"photos": [{"image": "a.jpg", "lat": 46.0, "lon": 8.0, "initial": "10,1,0,50"}]})");
+  const auto j = ReadManifest((dir / "m.json").string());
+  ASSERT_EQ(j.size(), 1u);
+  ASSERT_TRUE(j[0].initial);
+  EXPECT_EQ(j[0].initial->hfov_deg, 50.0);
+}
+
+TEST_F(BatchTest, RejectsMalformedManifestsNamingTheLine) {
+  const auto error = [&](const std::string& text) -> std::string {
+    Write("bad.csv", text);
+    try {
+      ReadManifest((dir / "bad.csv").string());
+    } catch (const InvalidArgument& e) {
+      return e.what();
+    }
+    return "no error";
+  };
+  EXPECT_NE(error("image,lat,lon,hfov\na.jpg,1,2,3\n").find("unknown column 'hfov'"), std::string::npos);
+  EXPECT_NE(error("image,lat,lon\na.jpg,1,2\na.jpg,1,2\n").find("line 3: image 'a.jpg' is listed twice"), std::string::npos);
+  EXPECT_NE(error("image,lat,lon\na.jpg,x,2\n").find("line 2: lat 'x' is not a number"), std::string::npos);
+  EXPECT_NE(error("image,lat\na.jpg,1\n").find("lat and lon go together"), std::string::npos);
+  EXPECT_NE(error("image,lat,lon\na.jpg,1\n").find("2 cells, the header has 3"), std::string::npos);
+  EXPECT_NE(error("image,lat,lon\n").find("no photos"), std::string::npos);
+  EXPECT_NE(error("image,lat,lon,agl_m,alt_m\na.jpg,1,2,3,4\n").find("not both"), std::string::npos);
+}
+
+// Views rendered from Debian's Jacksboro DEM, registered in parallel on one
+// pool with a corrupt and a missing photo among them: every photo once, the
+// bad ones as error rows, the others exactly as RegisterPhoto gives them one
+// at a time (ThreadSanitizer runs this in CI).
+TEST_F(BatchTest, RegistersInParallelLikeOneAtATimeAndTurnsBadPhotosIntoErrorRows) {
+  const std::string dem = "/usr/share/matplotlib/mpl-data/sample_data/jacksboro_fault_dem.npz";
+  if (!fs::exists(dem)) GTEST_SKIP() << "python-matplotlib-data is not installed";
+  const double lat = 36.51979713, lon = -84.16396352;  // the demo's valley floor
+  const Site site({dem}, lat, lon, SiteOptions{});
+  const auto k = CameraIntrinsics::FromHfov(480, 320, 45.0);
+  std::string manifest = "image,lat,lon\n";
+  std::vector<cv::Mat> views;
+  // Views where the horizon has the most relief (as the demo picks them).
+  std::vector<std::array<double, 3>> relief;  // std dev, azimuth, mean elevation
+  for (double az = 0.0; az < 360.0; az += 5.0) {
+    double sum = 0.0, sum2 = 0.0;
+    int m = 0;
+    for (double d = -22.5; d <= 22.5; d += 0.5, ++m) {
+      const double e = site.horizon().ElevationAtDeg(std::fmod(az + d + 360.0, 360.0));
+      sum += e, sum2 += e * e;
+    }
+    relief.push_back({std::sqrt(std::max(0.0, sum2 / m - sum * sum / m / m)), az, sum / m});
+  }
+  std::sort(relief.rbegin(), relief.rend());
+  for (int i = 0; i < 4; ++i) {
+    const std::string name = "v" + std::to_string(i) + ".png";
+    const CameraPose pose{relief[2 * i][1] + 1.3, relief[2 * i][2] - 4.0, 0.5};
+    views.push_back(RenderView(site.window(), site.observer(), pose, k, RenderOptions{}));
+    cv::imwrite((dir / name).string(), views.back());
+    manifest += name + "," + std::to_string(lat) + "," + std::to_string(lon) + "\n";
+  }
+  Write("corrupt.png", "not a png");
+  manifest += "corrupt.png,36.51979713,-84.16396352\nmissing.png,36.51979713,-84.16396352\n";
+  Write("m.csv", manifest);
+  const auto items = ReadManifest((dir / "m.csv").string());
+  BatchOptions o;
+  o.dem = {dem};
+  ThreadPool pool(2);
+  std::map<std::string, nlohmann::json> rows;
+  std::mutex mu;
+  size_t progress_calls = 0;
+  const size_t n = RunBatch(
+      items, o, pool,
+      [&](const BatchResult& r) {
+        std::lock_guard<std::mutex> lock(mu);
+        EXPECT_TRUE(rows.emplace(r.row["image"].get<std::string>(), r.row).second);
+      },
+      [&](const BatchProgress& p) { progress_calls += p.done <= p.total; });
+  ASSERT_EQ(n, items.size());
+  ASSERT_EQ(rows.size(), items.size());
+  EXPECT_EQ(progress_calls, items.size());
+  EXPECT_EQ(rows["corrupt.png"]["status"], "error");
+  EXPECT_EQ(rows["missing.png"]["status"], "error");
+  const Site alone({dem}, std::stod(std::to_string(lat)), std::stod(std::to_string(lon)), SiteOptions{});
+  int registered = 0;
+  for (int i = 0; i < 4; ++i) {
+    nlohmann::json row = rows["v" + std::to_string(i) + ".png"];
+    const PhotoRegistration r = RegisterPhoto(alone, cv::imread((dir / ("v" + std::to_string(i) + ".png")).string()), {});
+    nlohmann::json ref = RegistrationReport(alone, r, "arguments", 0.0);
+    row.erase("timing_ms"), row.erase("image"), ref.erase("timing_ms");
+    EXPECT_EQ(row, ref) << i;
+    registered += row["status"] == "registered";
+  }
+  EXPECT_GE(registered, 2);
+}
+
+}  // namespace
+}  // namespace horizonreg
