@@ -128,7 +128,7 @@ std::string OverlayName(const std::string& image) {
   std::string s = fs::path(image).replace_extension(".png").string();
   for (char& c : s)
     if (c == '/' || c == '\\') c = '_';
-  while (!s.empty() && s[0] == '.') s.erase(0, 1);
+  while (!s.empty() && (s[0] == '.' || s[0] == '_')) s.erase(0, 1);  // "../x", "/abs/x": no hidden or odd names
   return s;
 }
 
