@@ -45,6 +45,17 @@ std::vector<double> NumberArray(const std::string& path, const nlohmann::json& j
   return v;
 }
 
+// The intrinsics read from `path`, checked (errors name the file) and scaled
+// to the image.
+CameraIntrinsics Checked(const std::string& path, CameraIntrinsics k, int image_width, int image_height) {
+  try {
+    k.Check();
+  } catch (const InvalidArgument& e) {
+    Bad(path, e.what());
+  }
+  return Scaled(path, k, image_width, image_height);
+}
+
 CameraIntrinsics FromPlainJson(const std::string& path, const nlohmann::json& root, int image_width, int image_height) {
   const nlohmann::json& j = root.contains("camera") && root["camera"].is_object() ? root["camera"] : root;
   auto number = [&](const char* field) -> std::optional<double> {
@@ -68,12 +79,7 @@ CameraIntrinsics FromPlainJson(const std::string& path, const nlohmann::json& ro
   } catch (const InvalidArgument& e) {
     Bad(path, e.what());
   }
-  try {
-    k.Check();
-  } catch (const InvalidArgument& e) {
-    Bad(path, e.what());
-  }
-  return Scaled(path, k, image_width, image_height);
+  return Checked(path, k, image_width, image_height);
 }
 
 CameraIntrinsics FromOpenCv(const std::string& path, int image_width, int image_height) {
@@ -133,12 +139,7 @@ CameraIntrinsics FromOpenCv(const std::string& path, int image_width, int image_
       Bad(path, e.what());
     }
   }
-  try {
-    k.Check();
-  } catch (const InvalidArgument& e) {
-    Bad(path, e.what());
-  }
-  return Scaled(path, k, image_width, image_height);
+  return Checked(path, k, image_width, image_height);
 }
 
 }  // namespace
