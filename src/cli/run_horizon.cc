@@ -3,6 +3,7 @@
 // (--points). Also built without OpenCV into horizonreg-horizon
 // (HORIZONREG_NO_PLOT), which the launcher runs unless --plot is given.
 #include <CLI/CLI.hpp>
+#include <charconv>
 #include <chrono>
 #include <iostream>
 #include <memory>
@@ -236,19 +237,34 @@ int RunHorizonPoints(const HorizonArgs& a) {
     if (!errors[i].empty()) throw InvalidArgument("--points '" + a.points + "', point " + points[i].id + ": " + errors[i]);
   std::string text;
   if (a.format == "csv") {
-    std::ostringstream o;
-    o.precision(10);
-    o << "id,lat,lon,eye_height_m,azimuth_deg,elevation_deg,distance_m\n";
+    // The numbers as the JSON writes them (rounded, shortest form), without
+    // a JSON value per cell: 1440 rows per point.
+    const auto number = [&text](double v, int decimals) {
+      const nlohmann::json r = Rounded(v, decimals);
+      if (r.is_null()) return;
+      char buf[32];
+      const auto end = std::to_chars(buf, buf + sizeof(buf), r.get<double>()).ptr;
+      text.append(buf, end);
+      if (std::find_if(buf, end, [](char c) { return c == '.' || c == 'e'; }) == end) text += ".0";  // as JSON: 0.0
+    };
+    text = "id,lat,lon,eye_height_m,azimuth_deg,elevation_deg,distance_m\n";
     for (size_t i = 0; i < points.size(); ++i) {
       const HorizonProfile& p = profiles[i];
       std::string id = points[i].id;
       if (id.find_first_of(",\"") != std::string::npos) id = "\"" + id + "\"";
-      for (int b = 0; b < p.size(); ++b)
-        o << id << ',' << points[i].lat << ',' << points[i].lon << ',' << Rounded(p.observer.height_m, 2) << ','
-          << Rounded(p.AzimuthDeg(b), 6) << ',' << Rounded(p.elevation_deg[b], 5) << ','
-          << Rounded(p.distance_m[b], 1) << '\n';
+      std::ostringstream head;
+      head.precision(10);
+      head << id << ',' << points[i].lat << ',' << points[i].lon << ',' << Rounded(p.observer.height_m, 2) << ',';
+      for (int b = 0; b < p.size(); ++b) {
+        text += head.str();
+        number(p.AzimuthDeg(b), 6);
+        text += ',';
+        number(p.elevation_deg[b], 5);
+        text += ',';
+        number(p.distance_m[b], 1);
+        text += '\n';
+      }
     }
-    text = o.str();
   } else {
     json all = json::array();
     for (size_t i = 0; i < points.size(); ++i) {
