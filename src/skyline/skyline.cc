@@ -244,6 +244,45 @@ HR_VECTOR_CLONES void EdgeAbovePenalty(const cv::Mat& steps_t, const cv::Mat& sk
   }
 }
 
+// Rows the expected slope moves the boundary from column c - 1 to c (0 for
+// the first column), for w columns.
+std::vector<int> SlopeShifts(int w, double slope_px_per_col) {
+  std::vector<int> shift(w, 0);
+  for (int c = 1; c < w; ++c)
+    shift[c] = static_cast<int>(std::lround(c * slope_px_per_col) - std::lround((c - 1) * slope_px_per_col));
+  return shift;
+}
+
+// The back-trace of a column DP over `acc` (n = h + 1 accumulated costs per
+// column, column_min their minima): the best last row, then per column the
+// previous column's row that reached it most cheaply (the first of equals),
+// searched outwards until the jump alone (beta per row) costs more than the
+// best found.
+std::vector<int> TraceBack(const std::vector<float>& acc, const std::vector<float>& column_min,
+                           const std::vector<int>& shift, int n, float beta) {
+  const int w = static_cast<int>(shift.size()), h = n - 1;
+  std::vector<int> out(w);
+  const float* last = acc.data() + static_cast<size_t>(w - 1) * n;
+  out[w - 1] = static_cast<int>(std::min_element(last, last + n) - last);
+  for (int c = w - 1; c > 0; --c) {
+    const float* a = acc.data() + static_cast<size_t>(c - 1) * n;
+    const int o = out[c];
+    float best = INFINITY;
+    int best_y = n;
+    auto consider = [&](int y) {
+      const float v = a[std::clamp(y - shift[c], 0, h)] + beta * static_cast<float>(std::abs(o - y));
+      if (v < best || (v == best && y < best_y)) best = v, best_y = y;
+    };
+    consider(o);
+    for (int d = 1; (o - d >= 0 || o + d < n) && column_min[c - 1] + beta * static_cast<float>(d) <= best; ++d) {
+      if (o - d >= 0) consider(o - d);
+      if (o + d < n) consider(o + d);
+    }
+    out[c - 1] = std::clamp(best_y - shift[c], 0, h);
+  }
+  return out;
+}
+
 // Globally best boundary (one y in [0, h] per column): misclassified pixels
 // (sky below or non-sky above) minus the colour step at the boundary, plus
 // `smoothness` per pixel of jump, around the slope expected from the roll.
@@ -254,9 +293,7 @@ std::vector<int> SolveBoundary(const cv::Mat& sky_t, const cv::Mat& steps_t, con
   std::vector<float> data(n), forward(n), ramp(n), pen(n + 1), pen_extra(n + 1), zeros(n, 0.0f), column_min(w);
   const float beta = static_cast<float>(smoothness), lambda = static_cast<float>(edge_weight);
   for (int y = 0; y < n; ++y) ramp[y] = beta * static_cast<float>(y);
-  std::vector<int> shift(w, 0);  // rows the expected slope moves the boundary from column c - 1 to c
-  for (int c = 1; c < w; ++c)
-    shift[c] = static_cast<int>(std::lround(c * slope_px_per_col) - std::lround((c - 1) * slope_px_per_col));
+  const std::vector<int> shift = SlopeShifts(w, slope_px_per_col);
   acc.resize(static_cast<size_t>(w) * n);
   for (int c = 0; c < w; ++c) {
     // The previous column's costs (none before the first), shifted by the
@@ -304,29 +341,7 @@ std::vector<int> SolveBoundary(const cv::Mat& sky_t, const cv::Mat& steps_t, con
     }
     column_min[c] = lowest;
   }
-  std::vector<int> out(w);
-  const float* last = acc.data() + static_cast<size_t>(w - 1) * n;
-  out[w - 1] = static_cast<int>(std::min_element(last, last + n) - last);
-  for (int c = w - 1; c > 0; --c) {
-    // The previous column's row that reached out[c] most cheaply (the first
-    // of equals), searched outwards from out[c] until the jump alone costs
-    // more than the best found.
-    const float* a = acc.data() + static_cast<size_t>(c - 1) * n;
-    const int o = out[c];
-    float best = INFINITY;
-    int best_y = n;
-    auto consider = [&](int y) {
-      const float v = a[std::clamp(y - shift[c], 0, h)] + beta * static_cast<float>(std::abs(o - y));
-      if (v < best || (v == best && y < best_y)) best = v, best_y = y;
-    };
-    consider(o);
-    for (int d = 1; (o - d >= 0 || o + d < n) && column_min[c - 1] + beta * static_cast<float>(d) <= best; ++d) {
-      if (o - d >= 0) consider(o - d);
-      if (o + d < n) consider(o + d);
-    }
-    out[c - 1] = std::clamp(best_y - shift[c], 0, h);
-  }
-  return out;
+  return TraceBack(acc, column_min, shift, n, beta);
 }
 
 // Globally best boundary for a given unary cost (one row of `unary` per
@@ -338,9 +353,7 @@ std::vector<int> SolveUnary(const cv::Mat& unary, double smoothness, double slop
   const float beta = static_cast<float>(smoothness);
   std::vector<float> forward(n), ramp(n), column_min(w);
   for (int y = 0; y < n; ++y) ramp[y] = beta * static_cast<float>(y);
-  std::vector<int> shift(w, 0);
-  for (int c = 1; c < w; ++c)
-    shift[c] = static_cast<int>(std::lround(c * slope_px_per_col) - std::lround((c - 1) * slope_px_per_col));
+  const std::vector<int> shift = SlopeShifts(w, slope_px_per_col);
   acc.resize(static_cast<size_t>(w) * n);
   for (int c = 0; c < w; ++c) {
     const float* u = unary.ptr<float>(c);
@@ -366,26 +379,7 @@ std::vector<int> SolveUnary(const cv::Mat& unary, double smoothness, double slop
     }
     column_min[c] = lowest;
   }
-  std::vector<int> out(w);
-  const float* last = acc.data() + static_cast<size_t>(w - 1) * n;
-  out[w - 1] = static_cast<int>(std::min_element(last, last + n) - last);
-  for (int c = w - 1; c > 0; --c) {
-    const float* a = acc.data() + static_cast<size_t>(c - 1) * n;
-    const int o = out[c];
-    float best = INFINITY;
-    int best_y = n;
-    auto consider = [&](int y) {
-      const float v = a[std::clamp(y - shift[c], 0, h)] + beta * static_cast<float>(std::abs(o - y));
-      if (v < best || (v == best && y < best_y)) best = v, best_y = y;
-    };
-    consider(o);
-    for (int d = 1; (o - d >= 0 || o + d < n) && column_min[c - 1] + beta * static_cast<float>(d) <= best; ++d) {
-      if (o - d >= 0) consider(o - d);
-      if (o + d < n) consider(o + d);
-    }
-    out[c - 1] = std::clamp(best_y - shift[c], 0, h);
-  }
-  return out;
+  return TraceBack(acc, column_min, shift, n, beta);
 }
 
 // Persistent colour steps: per column and boundary y, the change between the
