@@ -96,6 +96,7 @@ bool SkyModel::FitMasked(const LabPlanes& lab, const std::vector<int>& top, cons
     for (int k = 0; k < kTerms; ++k) coef_[ch][k] = x(k, ch);
   scale_ = static_cast<float>(scale);
   fitted_ = true;
+  top_ = top;
   return true;
 }
 
@@ -122,11 +123,21 @@ void SkyModel::Deviation(const LabPlanes& lab, cv::Mat& dev, cv::Mat* darker) co
       poly[ch][2] = static_cast<float>(k[5] + k[8] * x);
       poly[ch][3] = static_cast<float>(k[6]);
     }
+    // Below the rows it was fitted to in this column, the cubic is
+    // continued as a straight line (its value and slope at the last row):
+    // a cubic's own extrapolation can climb to the colour of the snow below.
+    const int fitted_rows = c < static_cast<int>(top_.size()) ? std::min(top_[c], h) : h;
+    const float y_end = static_cast<float>(std::max(0, fitted_rows - 1) * sy);
     for (int r = 0; r < h; ++r) {
-      const float y = static_cast<float>(r * sy);
+      const float y = std::min(static_cast<float>(r * sy), y_end);
       pl[r] = poly[0][0] + y * (poly[0][1] + y * (poly[0][2] + y * poly[0][3]));
       pa[r] = poly[1][0] + y * (poly[1][1] + y * (poly[1][2] + y * poly[1][3]));
       pb[r] = poly[2][0] + y * (poly[2][1] + y * (poly[2][2] + y * poly[2][3]));
+      if (const float dy = static_cast<float>(r * sy) - y; dy > 0) {
+        pl[r] += dy * (poly[0][1] + y * (2 * poly[0][2] + 3 * y * poly[0][3]));
+        pa[r] += dy * (poly[1][1] + y * (2 * poly[1][2] + 3 * y * poly[1][3]));
+        pb[r] += dy * (poly[2][1] + y * (2 * poly[2][2] + 3 * y * poly[2][3]));
+      }
     }
     const float* l = lab.l.ptr<float>(c);
     const float* a = lab.a.ptr<float>(c);

@@ -33,7 +33,10 @@ class SkyModel {
   bool Refit(const LabPlanes& lab, const std::vector<int>& top, const cv::Mat& dev, float max_dev, int stride,
              float scale_floor);
   // Per pixel of the planes: the colour distance to the model, in units of
-  // its robust scale (planes layout: one row per column), into `dev`; and,
+  // its robust scale (planes layout: one row per column), into `dev`. Below
+  // the rows a column was fitted to, the model is continued as a straight
+  // line in y from the last of them (a cubic's own extrapolation climbs to
+  // the colour of the snow under a grey sky that lightens downwards). And,
   // when `darker` is given, how much darker than the model the pixel is
   // (predicted L* minus L*), in the same units.
   void Deviation(const LabPlanes& lab, cv::Mat& dev, cv::Mat* darker = nullptr) const;
@@ -45,6 +48,7 @@ class SkyModel {
   bool FitMasked(const LabPlanes& lab, const std::vector<int>& top, const cv::Mat* dev, float max_dev, int stride,
                  float scale_floor);
   std::array<std::array<double, kTerms>, 3> coef_{};  // per channel
+  std::vector<int> top_;  // per column: the rows above it were fitted
   float scale_ = 1.0f;
   bool fitted_ = false;
 };
