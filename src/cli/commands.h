@@ -58,6 +58,18 @@ struct RegisterArgs {
 void AddRegisterCommand(CLI::App& app, RegisterArgs& args);
 int RunRegister(const RegisterArgs& args);
 
+struct LocateArgs {
+  std::string image, dem_dir, area, hfov_range, camera, json, overlay;
+  std::vector<std::string> dem;
+  std::optional<double> hfov, grid;
+  double agl = 1.7;
+  double max_distance = 100'000.0;
+  bool pinhole = false, no_exif = false, sea_level_fill = false;
+  double max_image_mpx = 250.0, max_dem_mb = 2048.0;
+};
+void AddLocateCommand(CLI::App& app, LocateArgs& args);
+int RunLocate(const LocateArgs& args);
+
 struct BatchArgs {
   std::string manifest, dem_dir, stations, output, csv, overlay_dir, landmarks, hfov_range;
   std::vector<std::string> dem;

@@ -42,6 +42,7 @@ int main(int argc, char** argv) {
   cli::RenderArgs render_args;
   cli::TrackArgs track_args;
   cli::BatchArgs batch_args;
+  cli::LocateArgs locate_args;
   cli::AddHorizonCommand(app, horizon_args);
   cli::AddSkylineCommand(app, skyline_args);
   cli::AddRegisterCommand(app, register_args);
@@ -49,6 +50,7 @@ int main(int argc, char** argv) {
   cli::AddRenderCommand(app, render_args);
   cli::AddTrackCommand(app, track_args);
   cli::AddBatchCommand(app, batch_args);
+  cli::AddLocateCommand(app, locate_args);
   cli::AddDemoCommand(app, demo_args);
   if (const int code = cli::ParseOrExit(app, argc, argv); code >= 0) return code;
   if (app.got_subcommand("track")) return ExecTrack(argv);  // checked here, run there
@@ -59,6 +61,7 @@ int main(int argc, char** argv) {
     if (app.got_subcommand("overlay")) return cli::RunOverlay(overlay_args);
     if (app.got_subcommand("render")) return cli::RunRender(render_args);
     if (app.got_subcommand("batch")) return cli::RunBatch(batch_args);
+    if (app.got_subcommand("locate")) return cli::RunLocate(locate_args);
     if (app.got_subcommand("demo")) return cli::RunDemo(demo_args);
     std::cerr << "horizonreg: no command given (see --help)\n";
     return 2;

@@ -93,20 +93,28 @@ SkylineOptions PhotoSkylineOptions(const PhotoOptions& options) {
   return so;
 }
 
+std::string PhotoHfovWindow(const PhotoOptions& po, int width, int height, double& min_deg, double& max_deg) {
+  if (po.hfov_deg) {
+    min_deg = *po.hfov_deg * 0.97, max_deg = std::min(169.0, *po.hfov_deg * 1.03);
+    return "--hfov";
+  }
+  if (po.hfov_range_deg) {
+    std::tie(min_deg, max_deg) = *po.hfov_range_deg;
+    return "--hfov-range";
+  }
+  if (po.exif.focal_35mm) {
+    const double h = HfovFromFocal35mm(*po.exif.focal_35mm, width, height);
+    min_deg = std::max(1.0, h * 0.9), max_deg = std::min(169.0, h * 1.1);
+    return "exif";
+  }
+  return "default";
+}
+
 RegistrationOptions PhotoRegistrationOptions(const Site& site, const PhotoOptions& po, int width, int height,
                                              std::string* fov_source) {
   po.Check();
   RegistrationOptions ro = po.registration;
-  std::string fov = "default";
-  if (po.hfov_deg) {
-    ro.min_hfov_deg = *po.hfov_deg * 0.97, ro.max_hfov_deg = std::min(169.0, *po.hfov_deg * 1.03), fov = "--hfov";
-  } else if (po.hfov_range_deg) {
-    std::tie(ro.min_hfov_deg, ro.max_hfov_deg) = *po.hfov_range_deg;
-    fov = "--hfov-range";
-  } else if (po.exif.focal_35mm) {
-    const double h = HfovFromFocal35mm(*po.exif.focal_35mm, width, height);
-    ro.min_hfov_deg = std::max(1.0, h * 0.9), ro.max_hfov_deg = std::min(169.0, h * 1.1), fov = "exif";
-  }
+  const std::string fov = PhotoHfovWindow(po, width, height, ro.min_hfov_deg, ro.max_hfov_deg);
   ro.estimate_distortion = !po.pinhole;
   if (po.camera) ro.known_intrinsics = po.camera->Resized(width, height);
   // How far the observer's given position may be off (the DEM error model):

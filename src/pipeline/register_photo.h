@@ -72,6 +72,11 @@ struct PhotoRegistration {
 
 // The skyline extractor's options for this photo (the inclinometer's roll as a hint).
 SkylineOptions PhotoSkylineOptions(const PhotoOptions& options);
+// The opening angles searched for a width x height photo: --hfov +-3%, the
+// --hfov-range, EXIF's 35 mm focal length +-10%, else min_deg / max_deg are
+// left as they are (the default range). Returns the source: "--hfov",
+// "--hfov-range", "exif" or "default".
+std::string PhotoHfovWindow(const PhotoOptions& options, int width, int height, double& min_deg, double& max_deg);
 // The registration options for a width x height photo at `site`.
 RegistrationOptions PhotoRegistrationOptions(const Site& site, const PhotoOptions& options, int width, int height,
                                              std::string* fov_source = nullptr);

@@ -1,0 +1,489 @@
+// SPDX-License-Identifier: MIT
+#include "pipeline/locate.h"
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <mutex>
+#include <opencv2/core.hpp>
+#include <sstream>
+
+#include "geo/conventions.h"
+#include "util/angles.h"
+#include "util/errors.h"
+
+namespace horizonreg {
+namespace locate_detail {
+
+Profile SkylineProfile(const Skyline& skyline, double hfov_deg, double pitch_deg, double per_deg) {
+  Profile p;
+  p.hfov_deg = hfov_deg;
+  p.pitch_deg = pitch_deg;
+  const double w = skyline.width, h = skyline.height;
+  const double f = 0.5 * w / std::tan(DegToRad(0.5 * hfov_deg));
+  const double cx = 0.5 * w, cy = 0.5 * h;
+  const double sp = std::sin(DegToRad(pitch_deg)), cp = std::cos(DegToRad(pitch_deg));
+  const int n = static_cast<int>(std::floor(hfov_deg * per_deg));
+  for (int k = 0; k < n; ++k) {
+    const double x = cx + f * std::tan(DegToRad(-0.5 * hfov_deg + (k + 0.5) / per_deg));
+    // The median of the columns within +-1 of x (a lone misread column does not count).
+    double ys[3];
+    int m = 0;
+    for (int c = static_cast<int>(std::floor(x)) - 1; c <= static_cast<int>(std::floor(x)) + 1; ++c)
+      if (c >= 0 && c < skyline.width && std::isfinite(skyline.y[c])) ys[m++] = skyline.y[c];
+    if (m == 0) {
+      p.offset_deg.push_back(RadToDeg(std::atan2(x - cx, f * cp)));
+      p.elevation_deg.push_back(NAN);
+      continue;
+    }
+    const double y = m == 3 ? std::max(std::min(ys[0], ys[1]), std::min(std::max(ys[0], ys[1]), ys[2])) : ys[0];
+    // The pixel's ray for a camera pitched by pitch_deg (roll 0): right x - cx,
+    // up along the tilted axis cy - y, forward f.
+    const double up = f * sp + (cy - y) * cp, ahead = f * cp - (cy - y) * sp, right = x - cx;
+    p.offset_deg.push_back(RadToDeg(std::atan2(right, ahead)));
+    p.elevation_deg.push_back(RadToDeg(std::atan2(up, std::hypot(right, ahead))));
+  }
+  return p;
+}
+
+std::pair<double, double> MatchProfile(const Profile& profile, const std::vector<double>& horizon, double hstep,
+                                       double step_deg, double around_deg, double within_deg) {
+  constexpr double kTruncDeg2 = 1.0;       // residuals beyond 1 deg count as 1 deg
+  constexpr double kMaxSlope = 0.18;        // |roll| up to ~10 deg
+  std::vector<double> off, el;
+  for (size_t k = 0; k < profile.offset_deg.size(); ++k)
+    if (std::isfinite(profile.elevation_deg[k])) off.push_back(profile.offset_deg[k]), el.push_back(profile.elevation_deg[k]);
+  const size_t n = off.size();
+  if (n < 4 || n < 0.6 * profile.offset_deg.size() || horizon.empty())
+    return {std::numeric_limits<double>::infinity(), 0.0};
+  const int bins = static_cast<int>(horizon.size());
+  auto at = [&](double az) {
+    double u = az / hstep;
+    u -= bins * std::floor(u / bins);
+    const int i0 = static_cast<int>(u) % bins, i1 = (i0 + 1) % bins;
+    const double t = u - std::floor(u);
+    return horizon[i0] * (1 - t) + horizon[i1] * t;
+  };
+  std::vector<double> d(n), tmp(n);
+  double best = std::numeric_limits<double>::infinity(), best_az = 0.0;
+  const bool window = within_deg < 180.0;
+  const int steps = window ? 2 * static_cast<int>(std::ceil(within_deg / step_deg)) + 1
+                           : static_cast<int>(std::lround(360.0 / step_deg));
+  const double first = window ? around_deg - step_deg * (steps / 2) : 0.0;
+  double sxx = 0;
+  for (double o : off) sxx += o * o;
+  for (int s = 0; s < steps; ++s) {
+    double az = first + s * step_deg;
+    az -= 360.0 * std::floor(az / 360.0);
+    for (size_t k = 0; k < n; ++k) d[k] = at(az + off[k]) - el[k];
+    // Pitch: the median difference; roll: the slope of the near ones; pitch again.
+    tmp = d;
+    std::nth_element(tmp.begin(), tmp.begin() + n / 2, tmp.end());
+    double p = tmp[n / 2], q = 0.0;
+    double sxy = 0, sx2 = 0;
+    for (size_t k = 0; k < n; ++k)
+      if (std::abs(d[k] - p) < 2.0) sxy += off[k] * (d[k] - p), sx2 += off[k] * off[k];
+    if (sx2 > 0.05 * sxx) q = std::clamp(sxy / sx2, -kMaxSlope, kMaxSlope);
+    for (size_t k = 0; k < n; ++k) tmp[k] = d[k] - q * off[k];
+    std::nth_element(tmp.begin(), tmp.begin() + n / 2, tmp.end());
+    p = tmp[n / 2];
+    double cost = 0;
+    for (size_t k = 0; k < n; ++k) {
+      const double r = d[k] - q * off[k] - p;
+      cost += std::min(r * r, kTruncDeg2);
+    }
+    cost /= n;
+    if (cost < best) best = cost, best_az = az;
+  }
+  return {best, best_az};
+}
+
+TerrainWindow Coarsen(const TerrainWindow& window, double post_m) {
+  TerrainWindow out;
+  for (const DemGrid& g : window.grids) {
+    const int k = static_cast<int>(std::floor(post_m / std::max(1.0, g.SpacingM())));
+    if (k < 2 || g.width < 4 * k || g.height < 4 * k) {
+      out.grids.push_back(g);
+      continue;
+    }
+    DemGrid c;
+    c.width = (g.width - 1) / k + 1;
+    c.height = (g.height - 1) / k + 1;
+    c.separable = g.separable;
+    c.source = g.source;
+    c.height_m.assign(static_cast<size_t>(c.width) * c.height, NAN);
+    if (g.separable) {
+      c.lat0_deg = g.lat0_deg, c.dlat_deg = g.dlat_deg * k, c.lon0_deg = g.lon0_deg, c.dlon_deg = g.dlon_deg * k;
+    } else {
+      c.lat_deg.resize(c.height_m.size()), c.lon_deg.resize(c.height_m.size());
+    }
+    const int half = k / 2;
+    for (int r = 0; r < c.height; ++r)
+      for (int col = 0; col < c.width; ++col) {
+        const int r0 = std::max(0, r * k - half), r1 = std::min(g.height - 1, r * k + half);
+        const int c0 = std::max(0, col * k - half), c1 = std::min(g.width - 1, col * k + half);
+        double sum = 0.0;
+        int count = 0;
+        for (int rr = r0; rr <= r1; ++rr)
+          for (int cc = c0; cc <= c1; ++cc)
+            if (const float v = g.At(cc, rr); std::isfinite(v)) sum += v, ++count;
+        const size_t i = static_cast<size_t>(r) * c.width + col;
+        c.height_m[i] = count ? static_cast<float>(sum / count) : NAN;
+        if (!g.separable) c.lat_deg[i] = g.LatAt(col * k, r * k), c.lon_deg[i] = g.LonAt(col * k, r * k);
+      }
+    if (!g.separable) c.IndexPositions();
+    c.IndexBlocks();
+    out.grids.push_back(std::move(c));
+  }
+  return out;
+}
+
+}  // namespace locate_detail
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+constexpr double kPolishSigmaM = 3.0;
+constexpr double kRunnerUpCostRatio = 3.0;
+constexpr double kEqualFit = 0.15;  // viewpoints whose registration misfit is within 15% of the best fit as well  // runners-up registered when their profile misfit is within this ratio  // the position error the viewpoints are compared at, metres
+double MsSince(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
+
+// Local east/north offsets (metres) to WGS84 (the area is at most tens of km).
+GeodeticPoint Offset(double lat, double lon, double east_m, double north_m) {
+  const double s = std::sin(DegToRad(lat));
+  const double w = std::sqrt(1.0 - kWgs84E2 * s * s);
+  const double n_radius = kWgs84A / w, m_radius = kWgs84A * (1.0 - kWgs84E2) / (w * w * w);
+  return {lat + RadToDeg(north_m / m_radius), lon + RadToDeg(east_m / (n_radius * std::cos(DegToRad(lat)))), 0.0};
+}
+double DistanceM(double lat0, double lon0, double lat1, double lon1) {
+  const double s = std::sin(DegToRad(lat0));
+  const double w = std::sqrt(1.0 - kWgs84E2 * s * s);
+  const double n_radius = kWgs84A / w, m_radius = kWgs84A * (1.0 - kWgs84E2) / (w * w * w);
+  return std::hypot(DegToRad(lat1 - lat0) * m_radius, DegToRad(lon1 - lon0) * n_radius * std::cos(DegToRad(lat0)));
+}
+
+struct Scored {
+  double lat = 0, lon = 0, cost = INFINITY, azimuth = 0, hfov = 0, pitch = 0, coarse_cost = INFINITY;
+};
+
+// The opening angles tried: the registration's window in steps of `factor`.
+std::vector<double> HfovsToTry(double lo, double hi, double factor) {
+  const int n = std::max(1, static_cast<int>(std::ceil(std::log(hi / lo) / std::log(factor))));
+  std::vector<double> out;
+  for (int i = 0; i < n; ++i) out.push_back(lo * std::pow(hi / lo, (i + 0.5) / n));
+  return out;
+}
+
+// Pitches tried: the profile's elevations are exact at these, the pitch
+// offset fitted on top of them absorbs the rest (at most 2 deg).
+constexpr double kPitchesDeg[] = {-12.0, -8.0, -4.0, 0.0, 4.0, 8.0, 12.0};
+constexpr double kFinePitchesDeg[] = {-14.0, -12.0, -10.0, -8.0, -6.0, -4.0, -2.0, 0.0,
+                                      2.0,   4.0,   6.0,   8.0,   10.0, 12.0, 14.0};
+
+}  // namespace
+
+void LocateOptions::Check() const {
+  if (!(std::abs(lat_deg) <= 90.0)) ThrowField("--area latitude", lat_deg, "within [-90, 90]");
+  if (!(std::abs(lon_deg) <= 360.0)) ThrowField("--area longitude", lon_deg, "within [-180, 360]");
+  if (!(radius_m >= 10.0 && radius_m <= 50'000.0)) ThrowField("--area radius", radius_m, "in [10, 50000] metres");
+  if (!(grid_m == 0.0 || (grid_m >= 10.0 && grid_m <= radius_m)))
+    ThrowField("LocateOptions::grid_m", grid_m, "0 (automatic) or in [10, radius] metres");
+  if (!(coarse_max_distance_m > 0.0)) ThrowField("LocateOptions::coarse_max_distance_m", coarse_max_distance_m, "> 0");
+  if (coarse_keep < 1 || register_keep < 1) throw InvalidArgument("LocateOptions: coarse_keep and register_keep >= 1");
+  if (site.alt_m) throw InvalidArgument("locate: the eye is given as a height above the ground (--agl), not an altitude");
+  site.Check();
+  photo.Check();
+}
+
+LocateResult Locate(const std::vector<std::string>& dem, const cv::Mat& image, const LocateOptions& options,
+                    ThreadPool* pool) {
+  options.Check();
+  using namespace locate_detail;
+  const auto t_start = Clock::now();
+  LocateResult out;
+  const double radius = options.radius_m;
+  const double grid = options.grid_m > 0 ? options.grid_m : std::clamp(radius / 30.0, 100.0, 400.0);
+  out.grid_m = grid;
+
+  // One DEM window for every candidate: the area plus the final horizon distance.
+  auto t0 = Clock::now();
+  Terrain terrain(dem);
+  terrain.set_max_window_bytes(options.site.max_dem_bytes);
+  const GeodeticPoint centre{options.lat_deg, options.lon_deg, 0.0};
+  TerrainWindow window = terrain.ReadWindow(centre, radius + options.site.max_distance_m);
+  if (options.site.sea_level_fill) AddSeaLevel(window, centre, radius + options.site.max_distance_m);
+  const TerrainWindow coarse = Coarsen(window, options.coarse_post_m);
+  out.dem_ms = MsSince(t0);
+
+  // The skyline, once.
+  t0 = Clock::now();
+  PhotoOptions po = options.photo;
+  if (!po.skyline) po.skyline = ExtractSkyline(image, PhotoSkylineOptions(po));
+  const Skyline& skyline = *po.skyline;
+  out.skyline_ms = MsSince(t0);
+  // The opening angles `register` would search (arguments, EXIF or its default).
+  double hfov_lo = po.registration.min_hfov_deg, hfov_hi = po.registration.max_hfov_deg;
+  PhotoHfovWindow(po, image.cols, image.rows, hfov_lo, hfov_hi);
+  // The answer is one of the fine viewpoints, a quarter of the coarse spacing apart.
+  po.position_source = "locate";
+  if (!po.position_sigma_m) po.position_sigma_m = grid / 8.0;
+  std::vector<Profile> coarse_profiles, fine_profiles;
+  for (double pitch : kPitchesDeg)
+    for (double h : HfovsToTry(hfov_lo, hfov_hi, 1.12)) coarse_profiles.push_back(SkylineProfile(skyline, h, pitch, 1.0));
+  for (double pitch : kFinePitchesDeg)
+    for (double h : HfovsToTry(hfov_lo, hfov_hi, 1.04)) fine_profiles.push_back(SkylineProfile(skyline, h, pitch, 2.0));
+  const double agl = options.site.agl_m.value_or(kDefaultEyeHeightM);
+  // The profiles' fit at a viewpoint: all of them, or (`near` given) those
+  // within 4 deg of its pitch, over azimuths within 4 deg of its own.
+  auto score = [&](const TerrainWindow& w, double lat, double lon, double hstep, double max_distance,
+                   const std::vector<Profile>& profiles, double az_step, double min_distance = 0.5,
+                   const Scored* near = nullptr) {
+    Scored s;
+    s.lat = lat, s.lon = lon;
+    const std::optional<double> ground = window.HeightAt(lat, lon);
+    if (!ground) return s;
+    HorizonOptions ho;
+    ho.azimuth_step_deg = hstep;
+    ho.max_distance_m = max_distance;
+    ho.min_distance_m = min_distance;
+    ho.refraction = options.site.refraction;
+    ho.num_threads = 1;
+    const HorizonProfile hp = ComputeHorizon(w, {lat, lon, *ground + agl}, ho);
+    for (const Profile& p : profiles) {
+      if (near && std::abs(p.pitch_deg - near->pitch) > 4.01) continue;
+      const auto [cost, az] = near ? MatchProfile(p, hp.elevation_deg, hstep, az_step, near->azimuth, 4.0)
+                                   : MatchProfile(p, hp.elevation_deg, hstep, az_step);
+      if (cost < s.cost) s.cost = cost, s.azimuth = az, s.hfov = p.hfov_deg, s.pitch = p.pitch_deg;
+    }
+    return s;
+  };
+  auto run_all = [&](std::vector<Scored>& items, auto&& fn) {
+    if (pool) {
+      pool->ParallelFor(items.size(), [&](size_t i, int) { items[i] = fn(items[i]); });
+    } else {
+      for (Scored& s : items) s = fn(s);
+    }
+  };
+
+  // 1. Coarse grid.
+  t0 = Clock::now();
+  std::vector<Scored> cands;
+  const int n = static_cast<int>(std::ceil(radius / grid));
+  for (int j = -n; j <= n; ++j)
+    for (int i = -n; i <= n; ++i) {
+      if (std::hypot(i * grid, j * grid) > radius) continue;
+      const GeodeticPoint p = Offset(options.lat_deg, options.lon_deg, i * grid, j * grid);
+      if (!window.HeightAt(p.lat_deg, p.lon_deg)) continue;
+      Scored s;
+      s.lat = p.lat_deg, s.lon = p.lon_deg;
+      cands.push_back(s);
+    }
+  if (cands.empty()) throw InvalidArgument("locate: no DEM data inside the search area");
+  run_all(cands, [&](const Scored& s) {
+    // The pooled posts around the viewpoint are not its ground: left out.
+    return score(coarse, s.lat, s.lon, 1.0, options.coarse_max_distance_m, coarse_profiles, 1.0, options.coarse_post_m);
+  });
+  out.coarse_viewpoints = static_cast<int>(cands.size());
+  std::sort(cands.begin(), cands.end(), [](const Scored& a, const Scored& b) { return a.cost < b.cost; });
+  std::vector<Scored> seeds;  // distinct: at least 3 grid steps apart
+  for (const Scored& s : cands) {
+    if (!std::isfinite(s.cost)) break;
+    bool near = false;
+    for (const Scored& t : seeds) near = near || DistanceM(s.lat, s.lon, t.lat, t.lon) < 3.0 * grid;
+    if (!near) seeds.push_back(s);
+    if (static_cast<int>(seeds.size()) >= options.coarse_keep) break;
+  }
+  for (Scored& s : seeds) s.coarse_cost = s.cost;
+  out.distinctiveness = seeds.size() > 1 ? seeds[1].coarse_cost / std::max(1e-9, seeds[0].coarse_cost) : INFINITY;
+  out.coarse_ms = MsSince(t0);
+  if (seeds.empty()) {
+    out.message = "the skyline is too short or missing: nothing to compare with the DEM horizons";
+    return out;
+  }
+
+  // 2. Fine: 5 x 5 at half the spacing around each seed on the pooled DEM,
+  // then 3 x 3 at a quarter around the best few on the full one.
+  t0 = Clock::now();
+  auto local_grid = [&](const Scored& at, double step, int half) {
+    std::vector<Scored> local;
+    for (int j = -half; j <= half; ++j)
+      for (int i = -half; i <= half; ++i) {
+        const GeodeticPoint p = Offset(at.lat, at.lon, i * step, j * step);
+        Scored s;
+        s.lat = p.lat_deg, s.lon = p.lon_deg;
+        local.push_back(s);
+      }
+    return local;
+  };
+  auto best_of = [](const std::vector<Scored>& v) {
+    return *std::min_element(v.begin(), v.end(), [](const Scored& a, const Scored& b) { return a.cost < b.cost; });
+  };
+  std::vector<Scored> fine(seeds);
+  const int tries = std::min<int>(options.register_keep, static_cast<int>(fine.size()));
+  for (int k = 0; k < tries; ++k)
+    for (const auto& [step, half] : {std::pair{grid / 2, 2}, std::pair{grid / 4, 1}}) {
+      const Scored seed = fine[k];
+      std::vector<Scored> local = local_grid(seed, step, half);
+      run_all(local, [&](const Scored& s) {
+        return score(window, s.lat, s.lon, 0.25, options.coarse_max_distance_m, fine_profiles, 0.25, 0.5, &seed);
+      });
+      out.fine_viewpoints += static_cast<int>(local.size());
+      const double cc = fine[k].coarse_cost;
+      fine[k] = best_of(local);
+      fine[k].coarse_cost = cc;
+    }
+  std::stable_sort(fine.begin(), fine.begin() + tries,
+                   [](const Scored& a, const Scored& b) { return a.cost < b.cost; });
+  out.fine_ms = MsSince(t0);
+
+  // 3. Exact: the full registration on 3 x 3 viewpoints at an eighth, then
+  // a sixteenth of the spacing around each of the best (near ridges carry
+  // the position), the least misfit kept; then the answer's Site.
+  t0 = Clock::now();
+  for (const Scored& s : fine) {
+    LocateCandidate c;
+    c.lat_deg = s.lat, c.lon_deg = s.lon, c.cost = s.cost, c.azimuth_deg = s.azimuth, c.hfov_deg = s.hfov;
+    c.coarse_cost = s.coarse_cost;
+    out.candidates.push_back(c);
+  }
+  SiteOptions so = options.site;
+  so.agl_m = agl;
+  so.Check();
+  auto registration_options = [&](double sigma_m) {
+    PhotoOptions p = po;
+    p.position_sigma_m = sigma_m;
+    // Only the DEM error model's part of the options depends on the site (a
+    // height above the ground: 2 m); a stand-in site with no window is not
+    // needed for that, so the options are built as RegisterPhoto builds them.
+    RegistrationOptions ro = p.registration;
+    PhotoHfovWindow(p, image.cols, image.rows, ro.min_hfov_deg, ro.max_hfov_deg);
+    ro.estimate_distortion = !p.pinhole;
+    if (p.camera) ro.known_intrinsics = p.camera->Resized(image.cols, image.rows);
+    ro.dem_error.position_sigma_m = sigma_m;
+    ro.dem_error.height_sigma_m = 2.0;
+    ro.Check();
+    return ro;
+  };
+  struct Polished {
+    double lat = 0, lon = 0, misfit = INFINITY;
+    bool registered = false;
+    std::string message;
+    double azimuth = NAN, pitch = NAN;
+  };
+  auto register_at = [&](double lat, double lon, const RegistrationOptions& ro) {
+    Polished p;
+    p.lat = lat, p.lon = lon;
+    const std::optional<double> ground = window.HeightAt(lat, lon);
+    if (!ground) return p;
+    HorizonOptions ho = so.horizon_options();
+    ho.num_threads = 1;
+    const HorizonProfile hp = ComputeHorizon(window, {lat, lon, *ground + agl}, ho);
+    const Registration r = RegisterImage(image, skyline, hp, ro);
+    p.misfit = std::isfinite(r.misfit) ? r.misfit : INFINITY;
+    p.registered = r.registered;
+    p.message = r.message;
+    p.azimuth = r.pose.azimuth_deg, p.pitch = r.pose.pitch_deg;
+    return p;
+  };
+  int best = -1;
+  for (int i = 0; i < tries; ++i) {
+    LocateCandidate& c = out.candidates[i];
+    // Runners-up whose profiles fit clearly worse than the best's are not
+    // registered (a distinct skyline); those near it are, to see whether
+    // they register as well (then the answer is ambiguous).
+    if (i > 0 && !(c.cost <= kRunnerUpCostRatio * out.candidates[0].cost)) continue;
+    Polished at{c.lat_deg, c.lon_deg, INFINITY, false, "", NAN, NAN}, moved_from = at;
+    std::vector<Polished> seen;
+    // Compared at a tight position error (near ridges count): the misfit
+    // is least where the near terrain fits too. A pattern search: the 3 x 3
+    // moves while its best is not its centre (at most 3 times per step).
+    const RegistrationOptions ro = registration_options(kPolishSigmaM);
+    for (int round = 0; round < 7; ++round) {
+      // Steps of an eighth of the spacing (up to 3 moves), a sixteenth (2), a 32nd (1).
+      constexpr int kStepOf[] = {8, 8, 8, 16, 16, 32, 32};
+      if (round > 0 && kStepOf[round] == kStepOf[round - 1] && at.lat == moved_from.lat && at.lon == moved_from.lon)
+        continue;
+      const double step = grid / kStepOf[round];
+      moved_from = at;
+      std::vector<Polished> local(9);
+      auto one = [&](size_t k, int) {
+        const GeodeticPoint p =
+            Offset(at.lat, at.lon, (static_cast<int>(k % 3) - 1) * step, (static_cast<int>(k / 3) - 1) * step);
+        local[k] = register_at(p.lat_deg, p.lon_deg, ro);
+      };
+      if (pool) {
+        pool->ParallelFor(local.size(), one);
+      } else {
+        for (size_t k = 0; k < local.size(); ++k) one(k, 0);
+      }
+      out.fine_viewpoints += 9;
+      seen.insert(seen.end(), local.begin(), local.end());
+      for (const Polished& p : local)  // registered first, then the least misfit
+        if ((p.registered && !at.registered) || (p.registered == at.registered && p.misfit < at.misfit)) at = p;
+    }
+    c.lat_deg = at.lat, c.lon_deg = at.lon;
+    // How well the position is pinned: the viewpoints seen that register
+    // about as well (misfit within kEqualFit), how far apart they stand and
+    // how far apart their orientations are (position and orientation trade
+    // off when the terrain is far).
+    double spread2 = 0.0;
+    int equal = 0;
+    for (const Polished& p : seen)
+      if (at.registered && p.registered && p.misfit <= (1.0 + kEqualFit) * at.misfit) {
+        const double d = DistanceM(at.lat, at.lon, p.lat, p.lon);
+        spread2 += d * d, ++equal;
+        c.position_spread_m = std::max(c.position_spread_m, d);
+        c.orientation_spread_deg = std::max({c.orientation_spread_deg, std::abs(p.pitch - at.pitch),
+                                             std::abs(std::remainder(p.azimuth - at.azimuth, 360.0))});
+      }
+    c.position_rms_m = equal ? std::sqrt(spread2 / equal) : 0.0;
+    c.tried = true;
+    c.registered = at.registered;
+    c.misfit = at.misfit;
+    c.message = at.message;
+    if (c.registered && (best < 0 || c.misfit < out.candidates[best].misfit)) best = i;
+  }
+  const int answer = best >= 0 ? best : 0;
+  po.position_sigma_m = std::max(kPolishSigmaM, grid / 64);  // the last 3 x 3's half spacing
+  out.site = std::make_unique<Site>(TerrainWindow(window), out.candidates[answer].lat_deg,
+                                    out.candidates[answer].lon_deg, so, pool);
+  out.registration = RegisterPhoto(*out.site, image, po, pool);
+  out.register_ms = MsSince(t0);
+  std::swap(out.candidates[0], out.candidates[answer]);
+  if (best < 0 || !out.registration.registration.registered) {
+    out.message = "no candidate viewpoint registers: the skyline is not distinctive enough in the area";
+    return out;
+  }
+  if (const LocateCandidate& a = out.candidates[0]; a.orientation_spread_deg > options.max_orientation_spread_deg) {
+    std::ostringstream why;
+    why.precision(3);
+    why << "the position is not pinned down: viewpoints up to " << std::lround(a.position_spread_m)
+        << " m apart fit almost equally well, with orientations up to " << a.orientation_spread_deg << " deg apart";
+    out.message = why.str();
+    return out;
+  }
+  if (!(out.distinctiveness >= options.min_distinctiveness)) {
+    std::ostringstream why;
+    why.precision(3);
+    why << "not distinctive: another place in the area has a skyline almost as alike (profile misfit ratio "
+        << out.distinctiveness << ", " << options.min_distinctiveness << " needed)";
+    out.message = why.str();
+    return out;
+  }
+  for (int i = 1; i < tries; ++i) {
+    const LocateCandidate &b = out.candidates[0], &c = out.candidates[i];
+    if (c.registered && DistanceM(b.lat_deg, b.lon_deg, c.lat_deg, c.lon_deg) > 1000.0 &&
+        c.misfit < options.ambiguity_ratio * b.misfit) {
+      out.message = "ambiguous: viewpoints more than 1 km apart register almost equally well";
+      return out;
+    }
+  }
+  out.located = true;
+  out.message = "located";
+  (void)t_start;
+  return out;
+}
+
+}  // namespace horizonreg
