@@ -83,6 +83,7 @@ void PhotoOptions::Check() const {
     throw InvalidArgument("hfov_range_deg: need 0 < MIN <= MAX < 170");
   if (position_sigma_m && !(*position_sigma_m >= 0 && *position_sigma_m <= 100'000))
     ThrowField("position_sigma_m", *position_sigma_m, "in [0, 100000] metres");
+  if (refine_position) refine_position->Check();
   registration.Check();
 }
 
@@ -121,6 +122,12 @@ RegistrationOptions PhotoRegistrationOptions(const Site& site, const PhotoOption
   if (!po.sensors.compass_deg && po.exif.compass_deg) ro.prior.compass_sigma_deg = 20.0;
   ro.prior.pitch_deg = po.sensors.pitch_deg;
   ro.prior.roll_deg = po.sensors.roll_deg;
+  if (po.refine_position) {
+    // The position is uncertain by the prior: near terrain counts little
+    // until RefinePosition has placed the observer.
+    ro.dem_error.position_sigma_m = po.refine_position->horizontal_sigma_m;
+    ro.dem_error.height_sigma_m = po.refine_position->vertical_sigma_m;
+  }
   ro.Check();
   if (fov_source) *fov_source = fov;
   return ro;
@@ -172,8 +179,60 @@ PhotoRegistration RegisterPhoto(const Site& site, const cv::Mat& image_in, const
       r = RefinePose(out.skyline, horizon, start, FocalFromHfovPx(po.initial->hfov_deg, image.cols), hfov_given, ro,
                      50.0);
   }
+  if (po.refine_position) RefinePhotoPosition(site, image, *po.refine_position, ro, out, pool);
   out.match_ms = MsSince(t0);
   return out;
+}
+
+void RefinePhotoPosition(const Site& site, const cv::Mat& image, const PositionOptions& position_options,
+                         const RegistrationOptions& ro, PhotoRegistration& out, ThreadPool* pool) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const Registration first = out.registration;
+  // An eye given below the terrain (an EXIF altitude tens of metres low)
+  // sees nothing useful: the search starts above the ground there.
+  const Eigen::Vector3d start = PositionSearchStart(site);
+  PositionEstimate est;
+  if (start != Eigen::Vector3d::Zero()) {
+    HorizonOptions ho = site.horizon_options();
+    ho.pool = pool;
+    const HorizonProfile start_horizon =
+        ComputeHorizon(site.window(), LocalFrame(site.observer()).GeodeticFromEnu(start), ho);
+    const Registration lifted = RegisterImage(image, out.skyline, start_horizon, ro);
+    est = RefinePosition(site, out.skyline, lifted, ro, position_options, pool, start, &start_horizon);
+  } else {
+    est = RefinePosition(site, out.skyline, first, ro, position_options, pool);
+  }
+  auto keep_given = [&](const std::string& why) {
+    PositionEstimate kept;
+    kept.given = kept.observer = est.given;
+    kept.prior_sigma_enu_m = kept.sigma_enu_m = est.prior_sigma_enu_m;
+    kept.horizons = est.horizons;
+    kept.horizon = site.horizon();
+    kept.message = why;
+    est = std::move(kept);
+  };
+  if (est.offset_enu_m != Eigen::Vector3d::Zero() || est.observable_axis[0] || est.observable_axis[1] ||
+      est.observable_axis[2]) {
+    // Registered again at the estimate, by the whole decision (search,
+    // ambiguity, evidence): a position refinement never lets a pose through
+    // that the gates would refuse there.
+    RegistrationOptions at = ro;
+    at.dem_error.position_sigma_m = std::max(1.0, std::hypot(est.sigma_enu_m(0), est.sigma_enu_m(1)) / std::sqrt(2.0));
+    at.dem_error.height_sigma_m = std::max(1.0, est.sigma_enu_m(2));
+    Registration again = RegisterImage(image, out.skyline, est.horizon, at);
+    if (again.registered) {
+      out.registration = std::move(again);
+      out.options = at;
+    } else if (first.registered) {
+      keep_given("the registration at the refined position failed (" + again.message +
+                 "): the given position is kept");
+    } else {
+      keep_given("not registered at the refined position either (" + again.message +
+                 "): the given position is kept");
+    }
+  }
+  out.position = std::move(est);
+  out.position_ms = MsSince(t0);
 }
 
 Registration RegisterImage(const cv::Mat& image, const Skyline& skyline, const HorizonProfile& horizon,
