@@ -147,7 +147,33 @@ PositionEstimate RefinePosition(const Site& site, const Skyline& skyline, const 
   // alone from the start (a weak axis left free trades against the
   // orientation and drags the others: near terrain straight ahead tells the
   // distance to it, not the sideways position).
-  Search s = search(Eigen::Vector3d::Ones(), start_offset_enu_m, start, first.pose, first.focal_px, po.max_horizons);
+  // The height first, on a coarse scan of exact horizons (+-1.5 prior
+  // sigmas, not below the ground): it is the best-observed axis, and from a
+  // start tens of metres off a horizontal move can mimic it (moving towards
+  // near terrain raises it as lowering the eye does), a local minimum.
+  Eigen::Vector3d from = start_offset_enu_m;
+  CameraPose from_pose = first.pose;
+  double from_focal = first.focal_px;
+  if (po.height_scan) {
+    const Eigen::Vector3d held = Eigen::Vector3d::Zero();
+    PoseAndPositionFit best = FitPoseAndPosition(skyline, start, first.pose, first.focal_px, k1, fix_focal, from, prior,
+                                                 judge, scale, 6, held);
+    double best_total = total(best, from);
+    const std::optional<double> ground = site.window().HeightAt(est.given.lat_deg, est.given.lon_deg);
+    for (double k : {-1.5, 1.5}) {
+      const Eigen::Vector3d at = start_offset_enu_m + Eigen::Vector3d(0.0, 0.0, k * prior(2));
+      if (ground && est.given.height_m + at.z() < *ground + 0.5) continue;
+      HorizonProfile h = ComputeHorizon(site.window(), frame.GeodeticFromEnu(at), ho);
+      ++est.horizons;
+      const PoseAndPositionFit f =
+          FitPoseAndPosition(skyline, h, first.pose, first.focal_px, k1, fix_focal, at, prior, judge, scale, 6, held);
+      if (total(f, at) < best_total) {
+        best_total = total(f, at), best = f, from = at, start = std::move(h);
+        from_pose = f.pose, from_focal = f.focal_px;
+      }
+    }
+  }
+  Search s = search(Eigen::Vector3d::Ones(), from, start, from_pose, from_focal, po.max_horizons);
   auto sigmas = [&](const Search& x) {
     Eigen::Vector3d v;
     for (int k = 0; k < 3; ++k) v(k) = std::sqrt(std::max(0.0, x.fit.covariance(4 + k, 4 + k)));
@@ -162,8 +188,7 @@ PositionEstimate RefinePosition(const Site& site, const Skyline& skyline, const 
   }
   if (observable_axes > 0 && observable_axes < 3 && po.hold_weak_axes) {
     // Restart from the start with the weak axes held there.
-    Eigen::Vector3d from = start_offset_enu_m;
-    s = search(free, from, start, first.pose, first.focal_px, po.max_horizons);
+    s = search(free, from, start, from_pose, from_focal, po.max_horizons);
     sigma = sigmas(s);
     for (int k = 0; k < 3; ++k)
       if (free(k) != 0.0) est.observable_axis[k] = sigma(k) < po.observable_ratio * prior(k);

@@ -30,6 +30,9 @@ struct PositionOptions {
   // When only some axes are observable, search again with the others held
   // at the start (their estimate then stays the prior's centre).
   bool hold_weak_axes = false;
+  // Scan the eye height at +-1.5 prior sigmas (2 exact horizons) before
+  // the joint search, which starts from the best.
+  bool height_scan = true;
   void Check() const;  // Throws InvalidArgument naming the field.
 };
 

@@ -122,12 +122,6 @@ RegistrationOptions PhotoRegistrationOptions(const Site& site, const PhotoOption
   if (!po.sensors.compass_deg && po.exif.compass_deg) ro.prior.compass_sigma_deg = 20.0;
   ro.prior.pitch_deg = po.sensors.pitch_deg;
   ro.prior.roll_deg = po.sensors.roll_deg;
-  if (po.refine_position) {
-    // The position is uncertain by the prior: near terrain counts little
-    // until RefinePosition has placed the observer.
-    ro.dem_error.position_sigma_m = po.refine_position->horizontal_sigma_m;
-    ro.dem_error.height_sigma_m = po.refine_position->vertical_sigma_m;
-  }
   ro.Check();
   if (fov_source) *fov_source = fov;
   return ro;
@@ -214,15 +208,14 @@ void RefinePhotoPosition(const Site& site, const cv::Mat& image, const PositionO
   if (est.offset_enu_m != Eigen::Vector3d::Zero() || est.observable_axis[0] || est.observable_axis[1] ||
       est.observable_axis[2]) {
     // Registered again at the estimate, by the whole decision (search,
-    // ambiguity, evidence): a position refinement never lets a pose through
-    // that the gates would refuse there.
-    RegistrationOptions at = ro;
-    at.dem_error.position_sigma_m = std::max(1.0, std::hypot(est.sigma_enu_m(0), est.sigma_enu_m(1)) / std::sqrt(2.0));
-    at.dem_error.height_sigma_m = std::max(1.0, est.sigma_enu_m(2));
-    Registration again = RegisterImage(image, out.skyline, est.horizon, at);
+    // ambiguity, evidence) under the same DEM error model as at the given
+    // position (the prior of the refinement does not widen the gates: from
+    // a position kilometres off, a tolerance of tens of metres at near
+    // terrain lets wrong poses through): a position refinement never lets
+    // a pose through that the gates would refuse there.
+    Registration again = RegisterImage(image, out.skyline, est.horizon, ro);
     if (again.registered) {
       out.registration = std::move(again);
-      out.options = at;
     } else if (first.registered) {
       keep_given("the registration at the refined position failed (" + again.message +
                  "): the given position is kept");
