@@ -193,6 +193,13 @@ void RefinePhotoPosition(const Site& site, const cv::Mat& image, const PositionO
         ComputeHorizon(site.window(), LocalFrame(site.observer()).GeodeticFromEnu(start), ho);
     const Registration lifted = RegisterImage(image, out.skyline, start_horizon, ro);
     est = RefinePosition(site, out.skyline, lifted, ro, position_options, pool, start, &start_horizon);
+    if (est.offset_enu_m == Eigen::Vector3d::Zero()) {
+      // Not observable: still not below the ground.
+      est.offset_enu_m = start;
+      est.observer = LocalFrame(est.given).GeodeticFromEnu(start);
+      est.horizon = start_horizon;
+      est.message += "; the eye given below the terrain is put 1.7 m above it";
+    }
   } else {
     est = RefinePosition(site, out.skyline, first, ro, position_options, pool);
   }
