@@ -52,6 +52,7 @@ struct RegisterArgs {
   double max_distance = 100'000.0;
   double step = 0.1;  // finer than `horizon`'s default: each bin holds its maximum, 0.25 deg bins bias pitch
   bool no_exif = false;
+  bool refine_position = false;  // --refine-position
   bool pinhole = false;
   double max_image_mpx = 250.0, max_dem_mb = 2048.0;
 };

@@ -39,8 +39,12 @@ void AddRegisterCommand(CLI::App& app, RegisterArgs& a) {
   agl->excludes(alt);
   c->add_option("--sensors", a.sensors, "Compass/inclinometer readings (JSON, DESIGN.md) used as priors");
   c->add_option("--position-sigma", a.position_sigma,
-                "How far the position may be off, metres, 1 sigma (default 1 for --lat/--lon, 10 for a GPS fix)")
+                "How far the position may be off, metres, 1 sigma (default 1 for --lat/--lon, 10 for a GPS fix; "
+                "with --refine-position the horizontal prior, default 15 for --lat/--lon, 10 for a GPS fix)")
       ->check(CLI::Range(0.0, 100000.0));
+  c->add_flag("--refine-position", a.refine_position,
+              "Also estimate the latitude, longitude and eye height within the position's prior (eye height 10 m, "
+              "an EXIF altitude 20 m); the JSON gains a \"position\" block (DESIGN.md)");
   auto* hfov = c->add_option("--hfov", a.hfov, "Known horizontal opening angle, degrees (searched within +-3%)");
   auto* range =
       c->add_option("--hfov-range", a.hfov_range, "Opening angles to search, MIN:MAX degrees (default 10:120)");
@@ -87,6 +91,12 @@ int RunRegister(const RegisterArgs& a) {
   if (!a.camera.empty()) po.camera = ReadCameraFile(a.camera, image.cols, image.rows);
   if (!a.initial.empty()) po.initial = ParseInitialPose(a.initial);
   if (!a.skyline.empty()) po.skyline = ReadSkylineJson(a.skyline, image.cols, image.rows);
+  if (a.refine_position) {
+    if (a.position_sigma && !(*a.position_sigma > 0.0))
+      throw InvalidArgument("--position-sigma must be > 0 with --refine-position");
+    po.refine_position = DefaultPositionOptions(position.source, position.alt_m && position.source == "exif",
+                                                a.position_sigma);
+  }
   po.Check();
   SiteOptions so;
   so.agl_m = position.agl_m;

@@ -397,4 +397,27 @@ FitStats ComputeFitStats(const Scorer& scorer, const Pose4& p, const std::vector
   return s;
 }
 
+std::vector<Column> VisibleColumns(const Skyline& skyline, const ImageFrame& frame) {
+  std::vector<Column> all;
+  for (int i = 0; i < skyline.width; ++i) {
+    if (!std::isfinite(skyline.y[i])) continue;
+    const auto uv = frame.Offset(i + 0.5, skyline.y[i]);
+    if (!uv) continue;
+    Column c;
+    c.u = uv->x();
+    c.v = uv->y();
+    c.x_px = i + 0.5;
+    all.push_back(c);
+  }
+  return all;
+}
+
+std::vector<Column> Subsample(const std::vector<Column>& all, int count) {
+  if (static_cast<int>(all.size()) <= count) return all;
+  std::vector<Column> out;
+  out.reserve(count);
+  for (int i = 0; i < count; ++i) out.push_back(all[(static_cast<size_t>(i) * all.size() + all.size() / 2) / count]);
+  return out;
+}
+
 }  // namespace horizonreg::match_detail

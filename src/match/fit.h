@@ -12,6 +12,56 @@
 
 namespace horizonreg::match_detail {
 
+// The skyline in the fitting's coordinates: offsets from the principal
+// point, lens distortion removed when the lens is known (then in pixels of
+// focal length fx), as observed otherwise (principal point at the centre).
+class ImageFrame {
+ public:
+  ImageFrame(const Skyline& skyline, const std::optional<CameraIntrinsics>& known) {
+    if (known) {
+      lens_ = known->width == skyline.width && known->height == skyline.height
+                  ? *known
+                  : known->Resized(skyline.width, skyline.height);
+    }
+    width_ = skyline.width;
+    height_ = skyline.height;
+  }
+  bool known() const { return lens_.has_value(); }
+  // Offset (u, v) of a pixel; nullopt outside the lens model.
+  std::optional<Eigen::Vector2d> Offset(double x, double y) const {
+    if (!lens_) return Eigen::Vector2d(x - width_ / 2.0, y - height_ / 2.0);
+    const auto xy = lens_->NormalizedFromPixel({x, y});
+    if (!xy) return std::nullopt;
+    return Eigen::Vector2d(lens_->focal_px * xy->x(), lens_->focal_px * xy->y());
+  }
+  // The camera for a fitted pose (focal f and k1 when the lens is not known).
+  CameraIntrinsics Intrinsics(const Pose4& p) const {
+    if (lens_) return *lens_;
+    CameraIntrinsics k = CameraIntrinsics::FromHfov(width_, height_, 60.0);
+    k.focal_px = p.f;
+    if (p.k1 != 0.0) k.distortion = LensDistortion::Radial(p.k1);
+    return k;
+  }
+  double KnownFocalPx() const { return lens_ ? lens_->focal_px : NAN; }
+
+ private:
+  std::optional<CameraIntrinsics> lens_;
+  int width_ = 0, height_ = 0;
+};
+
+// The visible skyline columns in the fitting's coordinates (left to right).
+std::vector<Column> VisibleColumns(const Skyline& skyline, const ImageFrame& frame);
+// `count` columns spread evenly over `all` (all of them when fewer).
+std::vector<Column> Subsample(const std::vector<Column>& all, int count);
+// The skyline's pixel noise (1 sigma) for an image `width` pixels wide.
+inline double SigmaPx(const RegistrationOptions& o, int width) { return o.inlier_px * ToleranceScale(width) / 3.0; }
+// The DEM error model with its flattening scaled (the flattening an image shows).
+inline DemErrorModel ScaledModel(DemErrorModel m, double scale) {
+  m.flattening_spacings *= scale;
+  m.flattening_floor_deg *= scale;
+  return m;
+}
+
 // The chi^2 (ColumnLoss) above which a column is an outlier: 3 sigma.
 inline constexpr double kGateChi2 = 9.0;
 

@@ -19,11 +19,16 @@ namespace horizonreg {
 
 using match_detail::Column;
 using match_detail::HorizonLookup;
+using match_detail::ImageFrame;
 using match_detail::LeastSquaresOptions;
 using match_detail::PaperCorrection;
 using match_detail::Pose4;
 using match_detail::Refined;
 using match_detail::Scorer;
+using match_detail::ScaledModel;
+using match_detail::SigmaPx;
+using match_detail::Subsample;
+using match_detail::VisibleColumns;
 
 void SensorPrior::Check() const {
   if (compass_deg && !std::isfinite(*compass_deg)) ThrowField("SensorPrior::compass_deg", *compass_deg, "finite");
@@ -102,66 +107,6 @@ CameraIntrinsics Registration::Intrinsics(int width, int height) const {
 }
 
 namespace {
-
-// The skyline in the fitting's coordinates: offsets from the principal
-// point, lens distortion removed when the lens is known (then in pixels of
-// focal length fx), as observed otherwise (principal point at the centre).
-class ImageFrame {
- public:
-  ImageFrame(const Skyline& skyline, const std::optional<CameraIntrinsics>& known) {
-    if (known) {
-      lens_ = known->width == skyline.width && known->height == skyline.height
-                  ? *known
-                  : known->Resized(skyline.width, skyline.height);
-    }
-    width_ = skyline.width;
-    height_ = skyline.height;
-  }
-  bool known() const { return lens_.has_value(); }
-  // Offset (u, v) of a pixel; nullopt outside the lens model.
-  std::optional<Eigen::Vector2d> Offset(double x, double y) const {
-    if (!lens_) return Eigen::Vector2d(x - width_ / 2.0, y - height_ / 2.0);
-    const auto xy = lens_->NormalizedFromPixel({x, y});
-    if (!xy) return std::nullopt;
-    return Eigen::Vector2d(lens_->focal_px * xy->x(), lens_->focal_px * xy->y());
-  }
-  // The camera for a fitted pose (focal f and k1 when the lens is not known).
-  CameraIntrinsics Intrinsics(const Pose4& p) const {
-    if (lens_) return *lens_;
-    CameraIntrinsics k = CameraIntrinsics::FromHfov(width_, height_, 60.0);
-    k.focal_px = p.f;
-    if (p.k1 != 0.0) k.distortion = LensDistortion::Radial(p.k1);
-    return k;
-  }
-  double KnownFocalPx() const { return lens_ ? lens_->focal_px : NAN; }
-
- private:
-  std::optional<CameraIntrinsics> lens_;
-  int width_ = 0, height_ = 0;
-};
-
-std::vector<Column> VisibleColumns(const Skyline& skyline, const ImageFrame& frame) {
-  std::vector<Column> all;
-  for (int i = 0; i < skyline.width; ++i) {
-    if (!std::isfinite(skyline.y[i])) continue;
-    const auto uv = frame.Offset(i + 0.5, skyline.y[i]);
-    if (!uv) continue;
-    Column c;
-    c.u = uv->x();
-    c.v = uv->y();
-    c.x_px = i + 0.5;
-    all.push_back(c);
-  }
-  return all;
-}
-
-std::vector<Column> Subsample(const std::vector<Column>& all, int count) {
-  if (static_cast<int>(all.size()) <= count) return all;
-  std::vector<Column> out;
-  out.reserve(count);
-  for (int i = 0; i < count; ++i) out.push_back(all[(static_cast<size_t>(i) * all.size() + all.size() / 2) / count]);
-  return out;
-}
 
 double PriorPenalty(const SensorPrior& prior, const CameraPose& pose) {
   double chi2 = 0.0;
@@ -316,8 +261,6 @@ void FinishRegistration(const Scorer& scorer, const ImageFrame& frame, std::vect
   if (out.registered) out.message = "registered";
 }
 
-// The skyline's pixel noise (1 sigma) for an image `width` pixels wide.
-double SigmaPx(const RegistrationOptions& o, int width) { return o.inlier_px * ToleranceScale(width) / 3.0; }
 
 constexpr double kMinFlatteningScale = 0.1, kMaxFlatteningScale = 2.0;
 
@@ -342,11 +285,6 @@ double EstimateFlatteningScale(const Scorer& scorer, const Pose4& p, std::vector
   return std::clamp(ratios[ratios.size() / 2] / std::log(2.0), kMinFlatteningScale, kMaxFlatteningScale);
 }
 
-DemErrorModel ScaledModel(DemErrorModel m, double scale) {
-  m.flattening_spacings *= scale;
-  m.flattening_floor_deg *= scale;
-  return m;
-}
 
 }  // namespace
 

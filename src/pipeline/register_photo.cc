@@ -83,6 +83,7 @@ void PhotoOptions::Check() const {
     throw InvalidArgument("hfov_range_deg: need 0 < MIN <= MAX < 170");
   if (position_sigma_m && !(*position_sigma_m >= 0 && *position_sigma_m <= 100'000))
     ThrowField("position_sigma_m", *position_sigma_m, "in [0, 100000] metres");
+  if (refine_position) refine_position->Check();
   registration.Check();
 }
 
@@ -180,8 +181,66 @@ PhotoRegistration RegisterPhoto(const Site& site, const cv::Mat& image_in, const
       r = RefinePose(out.skyline, horizon, start, FocalFromHfovPx(po.initial->hfov_deg, image.cols), hfov_given, ro,
                      50.0);
   }
+  if (po.refine_position) RefinePhotoPosition(site, image, *po.refine_position, ro, out, pool);
   out.match_ms = MsSince(t0);
   return out;
+}
+
+void RefinePhotoPosition(const Site& site, const cv::Mat& image, const PositionOptions& position_options,
+                         const RegistrationOptions& ro, PhotoRegistration& out, ThreadPool* pool) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const Registration first = out.registration;
+  // An eye given below the terrain (an EXIF altitude tens of metres low)
+  // sees nothing useful: the search starts above the ground there.
+  const Eigen::Vector3d start = PositionSearchStart(site);
+  PositionEstimate est;
+  if (start != Eigen::Vector3d::Zero()) {
+    HorizonOptions ho = site.horizon_options();
+    ho.pool = pool;
+    const HorizonProfile start_horizon =
+        ComputeHorizon(site.window(), LocalFrame(site.observer()).GeodeticFromEnu(start), ho);
+    const Registration lifted = RegisterImage(image, out.skyline, start_horizon, ro);
+    est = RefinePosition(site, out.skyline, lifted, ro, position_options, pool, start, &start_horizon);
+    if (est.offset_enu_m == Eigen::Vector3d::Zero()) {
+      // Not observable: still not below the ground.
+      est.offset_enu_m = start;
+      est.observer = LocalFrame(est.given).GeodeticFromEnu(start);
+      est.horizon = start_horizon;
+      est.message += "; the eye given below the terrain is put 1.7 m above it";
+    }
+  } else {
+    est = RefinePosition(site, out.skyline, first, ro, position_options, pool);
+  }
+  auto keep_given = [&](const std::string& why) {
+    PositionEstimate kept;
+    kept.given = kept.observer = est.given;
+    kept.prior_sigma_enu_m = kept.sigma_enu_m = est.prior_sigma_enu_m;
+    kept.horizons = est.horizons;
+    kept.horizon = site.horizon();
+    kept.message = why;
+    est = std::move(kept);
+  };
+  if (est.offset_enu_m != Eigen::Vector3d::Zero() || est.observable_axis[0] || est.observable_axis[1] ||
+      est.observable_axis[2]) {
+    // Registered again at the estimate, by the whole decision (search,
+    // ambiguity, evidence) under the same DEM error model as at the given
+    // position (the prior of the refinement does not widen the gates: from
+    // a position kilometres off, a tolerance of tens of metres at near
+    // terrain lets wrong poses through): a position refinement never lets
+    // a pose through that the gates would refuse there.
+    Registration again = RegisterImage(image, out.skyline, est.horizon, ro);
+    if (again.registered) {
+      out.registration = std::move(again);
+    } else if (first.registered) {
+      keep_given("the registration at the refined position failed (" + again.message +
+                 "): the given position is kept");
+    } else {
+      keep_given("not registered at the refined position either (" + again.message +
+                 "): the given position is kept");
+    }
+  }
+  out.position = std::move(est);
+  out.position_ms = MsSince(t0);
 }
 
 Registration RegisterImage(const cv::Mat& image, const Skyline& skyline, const HorizonProfile& horizon,

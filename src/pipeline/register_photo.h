@@ -13,6 +13,7 @@
 
 #include "camera/camera.h"
 #include "match/register.h"
+#include "pipeline/position.h"
 #include "pipeline/site.h"
 #include "sensors/sensors.h"
 #include "skyline/skyline.h"
@@ -57,6 +58,9 @@ struct PhotoOptions {
   bool pinhole = false;                                     // no lens distortion: do not fit k1
   std::string position_source = "arguments";               // PhotoPosition::source
   std::optional<double> position_sigma_m;  // how far the position may be off (default by its source)
+  // Refine the position too (pipeline/position.h), within this prior
+  // (DefaultPositionOptions); the registration is then made at the estimate.
+  std::optional<PositionOptions> refine_position;
   RegistrationOptions registration;        // thresholds; priors, opening angles and intrinsics are set from the above
   void Check() const;                      // Throws InvalidArgument naming the field.
 };
@@ -68,6 +72,13 @@ struct PhotoRegistration {
   std::string fov_source;       // "--hfov", "--hfov-range", "exif" or "default"
   int width = 0, height = 0;
   double skyline_ms = 0.0, match_ms = 0.0;
+  // With PhotoOptions::refine_position: the position estimate (its horizon
+  // is the one `registration` was made at) and the time it took, included
+  // in match_ms.
+  std::optional<PositionEstimate> position;
+  double position_ms = 0.0;
+  // The horizon the registration was made at: the refined position's, else the site's.
+  const HorizonProfile& Horizon(const Site& site) const { return position ? position->horizon : site.horizon(); }
 };
 
 // The skyline extractor's options for this photo (the inclinometer's roll as a hint).
@@ -87,6 +98,14 @@ RegistrationOptions PhotoRegistrationOptions(const Site& site, const PhotoOption
 // options or an image that is not a photo.
 PhotoRegistration RegisterPhoto(const Site& site, const cv::Mat& image, const PhotoOptions& options,
                                 ThreadPool* pool = nullptr);
+
+// PhotoOptions::refine_position's step of RegisterPhoto, after the
+// registration at the site: RefinePosition from it, then the registration
+// again at the estimate (RegisterImage, the whole decision). When that one
+// fails the gates the given position and the first registration are kept
+// (the report says why). Sets out.position and out.position_ms.
+void RefinePhotoPosition(const Site& site, const cv::Mat& image, const PositionOptions& position_options,
+                         const RegistrationOptions& ro, PhotoRegistration& out, ThreadPool* pool = nullptr);
 
 // Register() of the image's skyline, then RecheckWithGuidedSkyline() when
 // it is a near miss.

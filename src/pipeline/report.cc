@@ -99,6 +99,36 @@ nlohmann::json RegistrationReport(const Site& site, const PhotoRegistration& pho
                     {"skyline", Rounded(photo.skyline_ms, 1)},
                     {"match", Rounded(photo.match_ms, 1)},
                     {"total", Rounded(total_ms, 1)}};
+  if (photo.position) {
+    const PositionEstimate& e = *photo.position;
+    const char* axes[3] = {"east", "north", "up"};
+    const char* angles[4] = {"azimuth", "pitch", "roll", "focal"};
+    nlohmann::json corr = nlohmann::json::object(), observable = nlohmann::json::object();
+    for (int k = 0; k < 3; ++k) {
+      observable[axes[k]] = e.observable_axis[k];
+      nlohmann::json row = nlohmann::json::object();
+      for (int a = 0; a < 4; ++a) row[angles[a]] = Rounded(e.correlation(k, a), 3);
+      corr[axes[k]] = row;
+    }
+    j["position"] = {{"lat", Rounded(e.observer.lat_deg, 8)},
+                     {"lon", Rounded(e.observer.lon_deg, 8)},
+                     {"eye_height_m", Rounded(e.observer.height_m, 2)},
+                     {"sigma_east_m", Rounded(e.sigma_enu_m(0), 2)},
+                     {"sigma_north_m", Rounded(e.sigma_enu_m(1), 2)},
+                     {"sigma_up_m", Rounded(e.sigma_enu_m(2), 2)},
+                     {"observable", e.observable},
+                     {"observable_axes", observable},
+                     {"offset_east_m", Rounded(e.offset_enu_m(0), 2)},
+                     {"offset_north_m", Rounded(e.offset_enu_m(1), 2)},
+                     {"offset_up_m", Rounded(e.offset_enu_m(2), 2)},
+                     {"prior_sigma_m", {Rounded(e.prior_sigma_enu_m(0), 2), Rounded(e.prior_sigma_enu_m(2), 2)}},
+                     {"correlation", corr},
+                     {"azimuth_sigma_deg", Rounded(e.azimuth_sigma_deg, 4)},
+                     {"pitch_sigma_deg", Rounded(e.pitch_sigma_deg, 4)},
+                     {"horizons", e.horizons},
+                     {"message", e.message}};
+    j["timing_ms"]["position"] = Rounded(photo.position_ms, 1);
+  }
   return j;
 }
 
@@ -115,7 +145,7 @@ cv::Mat DrawRegistration(const Site& site, const cv::Mat& image, const PhotoRegi
     oo.caption = caption.str();
     oo.eye_height_m = site.EyeAboveGroundM();
     return DrawOverlay(image, r.pose, r.Intrinsics(image.cols, image.rows),
-                       {&site.horizon(), &site.ridges(), OverlayLandmarks(site, landmarks_path)}, oo)
+                       {&photo.Horizon(site), &site.ridges(), OverlayLandmarks(site, landmarks_path)}, oo)
         .image;
   }
   caption << "no match: " << r.message;
