@@ -101,6 +101,7 @@ int RunLocate(const LocateArgs& a) {
                      {"sigma_up_m", Rounded(2.0, 1)},
                      {"observable", true}};
   }
+  auto finite_or_null = [](double v) { return std::isfinite(v) ? nlohmann::json(Rounded(v, 2)) : nlohmann::json(nullptr); };
   nlohmann::json cands = nlohmann::json::array();
   for (const LocateCandidate& c : r.candidates) {
     nlohmann::json e = {{"lat", Rounded(c.lat_deg, 7)},
@@ -120,8 +121,8 @@ int RunLocate(const LocateArgs& a) {
   }
   j["locate"] = {{"area", {{"lat", lo.lat_deg}, {"lon", lo.lon_deg}, {"radius_m", lo.radius_m}}},
                  {"grid_m", Rounded(r.grid_m, 1)},
-                 {"distinctiveness", std::isfinite(r.distinctiveness) ? nlohmann::json(Rounded(r.distinctiveness, 2))
-                                                                      : nlohmann::json(nullptr)},
+                 {"profile_distinctiveness", finite_or_null(r.distinctiveness)},
+                 {"distinctiveness", finite_or_null(r.registration_distinctiveness)},
                  {"viewpoints", {{"coarse", r.coarse_viewpoints}, {"fine", r.fine_viewpoints}}},
                  {"candidates", cands},
                  {"message", r.message}};

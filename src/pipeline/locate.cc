@@ -200,20 +200,28 @@ void LocateOptions::Check() const {
 LocateResult Locate(const std::vector<std::string>& dem, const cv::Mat& image, const LocateOptions& options,
                     ThreadPool* pool) {
   options.Check();
+  // One DEM window for every candidate: the area plus the final horizon distance.
+  const auto t0 = Clock::now();
+  Terrain terrain(dem);
+  terrain.set_max_window_bytes(options.site.max_dem_bytes);
+  const GeodeticPoint centre{options.lat_deg, options.lon_deg, 0.0};
+  TerrainWindow window = terrain.ReadWindow(centre, options.radius_m + options.site.max_distance_m);
+  if (options.site.sea_level_fill) AddSeaLevel(window, centre, options.radius_m + options.site.max_distance_m);
+  const double read_ms = MsSince(t0);
+  LocateResult out = LocateInWindow(window, image, options, pool);
+  out.dem_ms += read_ms;
+  return out;
+}
+
+LocateResult LocateInWindow(const TerrainWindow& window, const cv::Mat& image, const LocateOptions& options,
+                            ThreadPool* pool) {
+  options.Check();
   using namespace locate_detail;
-  const auto t_start = Clock::now();
   LocateResult out;
   const double radius = options.radius_m;
   const double grid = options.grid_m > 0 ? options.grid_m : std::clamp(radius / 30.0, 100.0, 400.0);
   out.grid_m = grid;
-
-  // One DEM window for every candidate: the area plus the final horizon distance.
   auto t0 = Clock::now();
-  Terrain terrain(dem);
-  terrain.set_max_window_bytes(options.site.max_dem_bytes);
-  const GeodeticPoint centre{options.lat_deg, options.lon_deg, 0.0};
-  TerrainWindow window = terrain.ReadWindow(centre, radius + options.site.max_distance_m);
-  if (options.site.sea_level_fill) AddSeaLevel(window, centre, radius + options.site.max_distance_m);
   const TerrainWindow coarse = Coarsen(window, options.coarse_post_m);
   out.dem_ms = MsSince(t0);
 
@@ -393,14 +401,15 @@ LocateResult Locate(const std::vector<std::string>& dem, const cv::Mat& image, c
     // Runners-up whose profiles fit clearly worse than the best's are not
     // registered (a distinct skyline); those near it are, to see whether
     // they register as well (then the answer is ambiguous).
-    if (i > 0 && !(c.cost <= kRunnerUpCostRatio * out.candidates[0].cost)) continue;
+    const bool polish = i == 0 || c.cost <= kRunnerUpCostRatio * out.candidates[0].cost;
     Polished at{c.lat_deg, c.lon_deg, INFINITY, false, "", NAN, NAN}, moved_from = at;
     std::vector<Polished> seen;
     // Compared at a tight position error (near ridges count): the misfit
     // is least where the near terrain fits too. A pattern search: the 3 x 3
     // moves while its best is not its centre (at most 3 times per step).
     const RegistrationOptions ro = registration_options(kPolishSigmaM);
-    for (int round = 0; round < 7; ++round) {
+    if (!polish) at = register_at(c.lat_deg, c.lon_deg, ro);  // its misfit only
+    for (int round = 0; polish && round < 7; ++round) {
       // Steps of an eighth of the spacing (up to 3 moves), a sixteenth (2), a 32nd (1).
       constexpr int kStepOf[] = {8, 8, 8, 16, 16, 32, 32};
       if (round > 0 && kStepOf[round] == kStepOf[round - 1] && at.lat == moved_from.lat && at.lon == moved_from.lon)
@@ -464,25 +473,25 @@ LocateResult Locate(const std::vector<std::string>& dem, const cv::Mat& image, c
     out.message = why.str();
     return out;
   }
-  if (!(out.distinctiveness >= options.min_distinctiveness)) {
+
+  // The other places' registrations must fit clearly worse (registered or
+  // not: a place whose skyline nearly fits the photo is a rival).
+  out.registration_distinctiveness = INFINITY;
+  for (int i = 1; i < tries; ++i) {
+    const LocateCandidate &b = out.candidates[0], &c = out.candidates[i];
+    if (c.tried && std::isfinite(c.misfit) && DistanceM(b.lat_deg, b.lon_deg, c.lat_deg, c.lon_deg) > 3.0 * grid)
+      out.registration_distinctiveness = std::min(out.registration_distinctiveness, c.misfit / b.misfit);
+  }
+  if (out.registration_distinctiveness < options.min_distinctiveness) {
     std::ostringstream why;
     why.precision(3);
-    why << "not distinctive: another place in the area has a skyline almost as alike (profile misfit ratio "
-        << out.distinctiveness << ", " << options.min_distinctiveness << " needed)";
+    why << "ambiguous: another place in the area registers almost as well (misfit ratio "
+        << out.registration_distinctiveness << ", " << options.min_distinctiveness << " needed)";
     out.message = why.str();
     return out;
   }
-  for (int i = 1; i < tries; ++i) {
-    const LocateCandidate &b = out.candidates[0], &c = out.candidates[i];
-    if (c.registered && DistanceM(b.lat_deg, b.lon_deg, c.lat_deg, c.lon_deg) > 1000.0 &&
-        c.misfit < options.ambiguity_ratio * b.misfit) {
-      out.message = "ambiguous: viewpoints more than 1 km apart register almost equally well";
-      return out;
-    }
-  }
   out.located = true;
   out.message = "located";
-  (void)t_start;
   return out;
 }
 

@@ -12,8 +12,9 @@
 //     a quarter, of the spacing on the full DEM at 0.25 deg.
 //  3. Exact: `RegisterPhoto` at the best fine viewpoints (the full
 //     registration, its gates included). The photo is located when the best
-//     registers and no registered viewpoint more than 1 km away fits almost
-//     as well; else no_match, with the runners-up listed.
+//     registers, every other place tried fits clearly worse (misfit ratio at
+//     least 1.5) and the viewpoints around it that fit as well agree on the
+//     orientation within 0.3 deg; else no_match, with the runners-up listed.
 #pragma once
 
 #include <string>
@@ -32,8 +33,7 @@ struct LocateOptions {
   double coarse_post_m = 200.0;         // candidate horizons on the DEM pooled to posts about this far apart
   int coarse_keep = 8;                  // distinct coarse viewpoints refined
   int register_keep = 4;                // fine viewpoints registered exactly
-  double ambiguity_ratio = 1.15;        // a registered viewpoint > 1 km away with misfit within this ratio: no_match
-  double min_distinctiveness = 1.4;     // the second distinct coarse viewpoint's profile misfit over the best's
+  double min_distinctiveness = 1.5;     // every other place's registration misfit over the answer's, at least
   double max_orientation_spread_deg = 0.3;  // viewpoints that fit equally well may disagree this much, no more
   SiteOptions site;                     // eye height (agl), refraction, horizon distance of the final registration
   PhotoOptions photo;                   // opening angle, EXIF, camera, as for `register`
@@ -61,8 +61,10 @@ struct LocateResult {
   std::vector<LocateCandidate> candidates;  // best first; [0] is the answer when located
   int coarse_viewpoints = 0, fine_viewpoints = 0;
   // The distinctiveness of the skyline in the area: the second-best distinct
-  // coarse viewpoint's profile misfit over the best one's (inf when alone).
-  double distinctiveness = 0.0;
+  // coarse viewpoint's profile misfit over the best one's (inf when alone),
+  // and the least registration misfit of the other places tried (more than
+  // 3 grid steps away) over the answer's (inf when none): the latter decides.
+  double distinctiveness = 0.0, registration_distinctiveness = 0.0;
   double grid_m = 0.0;
   double dem_ms = 0.0, skyline_ms = 0.0, coarse_ms = 0.0, fine_ms = 0.0, register_ms = 0.0;
   // The registration at the answer (or at the best tried viewpoint), and its site.
@@ -76,6 +78,10 @@ struct LocateResult {
 // result with located == false.
 LocateResult Locate(const std::vector<std::string>& dem, const cv::Mat& image, const LocateOptions& options,
                     ThreadPool* pool = nullptr);
+// The same in a DEM window already read (it must reach radius_m plus
+// site.max_distance_m around the area's centre for the full horizons).
+LocateResult LocateInWindow(const TerrainWindow& window, const cv::Mat& image, const LocateOptions& options,
+                            ThreadPool* pool = nullptr);
 
 namespace locate_detail {
 // A photo's skyline as an elevation profile, about `per_deg` samples per

@@ -13,6 +13,7 @@
 #include "pipeline/site.h"
 #include "render/render.h"
 #include "testing/cone_ring.h"
+#include "testing/near_far.h"
 #include "testing/synthetic_dem.h"
 #include "util/angles.h"
 #include "util/errors.h"
@@ -20,33 +21,10 @@
 namespace horizonreg {
 namespace {
 
-constexpr double kLat = 46.0, kLon = 8.0;
-
-// The cone ring's far cones (5-8 km) with near hills 0.6-1.5 km in front of
-// them, north-east of the observer: a view that carries the position.
-TerrainWindow NearFarWindow() {
-  std::vector<std::function<double(double, double)>> hills;
-  const double m_lat = 1.0 / 111'200.0, m_lon = m_lat / std::cos(DegToRad(kLat));
-  for (int i = 0; i < 9; ++i) {
-    const double a = DegToRad(i * 37.0 + 5.0), d = 0.06 + 0.015 * (i % 3);
-    hills.push_back(testing::ConeHeight(kLat + d * std::cos(a), kLon + d * std::sin(a) / std::cos(DegToRad(kLat)),
-                                        500.0, 700.0 + 180.0 * (i % 4), 2500.0 + 400.0 * (i % 2)));
-  }
-  const struct {
-    double az_deg, dist_m, height_m, radius_m;
-  } near[] = {{15, 700, 90, 350}, {40, 1100, 140, 450}, {62, 850, 70, 300}, {80, 1500, 160, 500}};
-  for (const auto& h : near) {
-    const double a = DegToRad(h.az_deg);
-    hills.push_back(testing::ConeHeight(kLat + h.dist_m * std::cos(a) * m_lat, kLon + h.dist_m * std::sin(a) * m_lon,
-                                        500.0, 500.0 + h.height_m, h.radius_m));
-  }
-  DemGrid g = testing::SynthesizeDem(46.12, 7.84, 1.0 / 2400, 770, 577, [&](double lat, double lon) {
-    double z = 500.0;
-    for (const auto& f : hills) z = std::max(z, f(lat, lon));
-    return z;
-  });
-  return testing::WindowOf(std::move(g));
-}
+using testing::kNearFarLat;
+using testing::kNearFarLon;
+using testing::NearFarWindow;
+constexpr double kLat = kNearFarLat, kLon = kNearFarLon;
 
 SiteOptions Options(double alt_m) {
   SiteOptions o;
@@ -105,15 +83,7 @@ class PositionTest : public ::testing::Test {
   }
   // The exact skyline of the truth pose seen from the true eye.
   Skyline TrueSkyline(const TerrainWindow& w, const GeodeticPoint& at) const {
-    HorizonOptions ho;
-    ho.azimuth_step_deg = 0.1;
-    ho.max_distance_m = 12'000.0;
-    const HorizonProfile h = ComputeHorizon(w, at, ho);
-    Skyline s;
-    s.width = k.width, s.height = k.height;
-    s.y = PredictedSkyline(h, truth, k);
-    s.confidence.assign(k.width, 1.0);
-    return s;
+    return testing::ExactSkyline(w, at, truth, k, 12'000.0);
   }
   TerrainWindow window;
   GeodeticPoint eye;
