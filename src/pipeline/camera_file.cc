@@ -95,6 +95,13 @@ CameraIntrinsics FromOpenCv(const std::string& path, int image_width, int image_
       const cv::FileNode node = fs[n];
       if (node.empty()) continue;
       try {
+        // OpenCV allocates rows x cols before reading the data: a garbled
+        // size (a non-number reads as INT_MAX) would ask for gigabytes
+        // (found by fuzz/fuzz_camera_file.cc). The matrices here are at
+        // most 3 x 3 and 1 x 14.
+        const auto small = [](const cv::FileNode& d) { return d.isInt() && int(d) >= 1 && int(d) <= 16; };
+        if (!node.isMap() || !small(node["rows"]) || !small(node["cols"]))
+          Bad(path, std::string("\"") + n + "\" is not a matrix of at most 16 x 16");
         node >> m;
       } catch (const cv::Exception&) {
         Bad(path, std::string("\"") + n + "\" is not a matrix");
