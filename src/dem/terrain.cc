@@ -4,6 +4,7 @@
 #include <cpl_conv.h>
 #include <cpl_error.h>
 #include <cpl_string.h>
+#include <cpl_vsi.h>
 #include <gdal.h>
 #include <gdal_alg.h>
 #include <ogr_srs_api.h>
@@ -92,6 +93,26 @@ GDALDatasetH DatasetFromNpz(const std::string& path) {
   return ds;
 }
 
+// GDAL 3.6's SRTMHGT driver opens a zipped tile (N46E007.hgt.zip) by the
+// member's size in the zip directory even when the member itself cannot be
+// opened (a corrupt local header), and then reads through a null file
+// handle, a crash (found by fuzz/fuzz_dem.cc): such a zip is refused here.
+void CheckZippedHgtOpens(const std::string& path, GDALDatasetH ds) {
+  const char* driver = GDALGetDriverShortName(GDALGetDatasetDriver(ds));
+  if (driver == nullptr || std::string(driver) != "SRTMHGT") return;
+  const std::string zip = "/vsizip/" + path;
+  char** members = VSIReadDir(zip.c_str());
+  if (members == nullptr) return;  // not a zip: the driver read the file itself
+  std::string bad;
+  for (int i = 0; members[i] != nullptr && bad.empty(); ++i) {
+    VSILFILE* f = VSIFOpenL((zip + "/" + members[i]).c_str(), "rb");
+    if (f == nullptr) bad = members[i];
+    else VSIFCloseL(f);
+  }
+  CSLDestroy(members);
+  if (!bad.empty()) throw IoError("dem: cannot read '" + bad + "' inside " + Quote(path) + ": " + LastGdalMessage());
+}
+
 Source OpenSource(const std::string& path) {
   Source s;
   s.path = path;
@@ -107,6 +128,7 @@ Source OpenSource(const std::string& path) {
   }
   if (ds == nullptr) throw IoError("dem: " + Quote(path) + " is not a readable raster: " + LastGdalMessage());
   s.dataset.reset(ds);
+  CheckZippedHgtOpens(path, ds);
   if (GDALGetRasterCount(ds) < 1) throw IoError("dem: " + Quote(path) + " has no raster band");
   s.width = GDALGetRasterXSize(ds);
   s.height = GDALGetRasterYSize(ds);
