@@ -89,10 +89,19 @@ CameraIntrinsics FromOpenCv(const std::string& path, int image_width, int image_
   } catch (const cv::Exception&) {
     Bad(path, "not an OpenCV calibration file (YAML/XML/JSON) nor a camera JSON");
   }
+  // fs[name] asserts (cv::Exception) when a top-level node is not a map,
+  // e.g. "%YAML:1.0\n- 1" (found by fuzz/fuzz_camera_file.cc).
+  const auto top = [&](const char* name) {
+    try {
+      return fs[name];
+    } catch (const cv::Exception&) {
+      Bad(path, "not an OpenCV calibration file (YAML/XML/JSON) nor a camera JSON");
+    }
+  };
   auto matrix = [&](std::initializer_list<const char*> names) {
     cv::Mat m;
     for (const char* n : names) {
-      const cv::FileNode node = fs[n];
+      const cv::FileNode node = top(n);
       if (node.empty()) continue;
       try {
         // OpenCV allocates rows x cols before reading the data: a garbled
@@ -125,8 +134,8 @@ CameraIntrinsics FromOpenCv(const std::string& path, int image_width, int image_
   }
   CameraIntrinsics k;
   int w = 0, h = 0;
-  if (!fs["image_width"].empty()) fs["image_width"] >> w;
-  if (!fs["image_height"].empty()) fs["image_height"] >> h;
+  if (!top("image_width").empty()) top("image_width") >> w;
+  if (!top("image_height").empty()) top("image_height") >> h;
   if ((w > 0) != (h > 0)) Bad(path, "give both image_width and image_height or neither");
   k.width = w > 0 ? w : image_width;
   k.height = h > 0 ? h : image_height;
