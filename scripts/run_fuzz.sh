@@ -43,6 +43,7 @@ for t in "$@"; do
   mkdir -p "$corpus" "$artifacts"
   echo "fuzz $t: ${seconds} s ..."
   start=$(date +%s)
+  touch "$log.start"
   nice -n 10 "$build/fuzz/fuzz_$t" -max_total_time="$seconds" -max_len="$(max_len "$t")" -rss_limit_mb=2048 \
     -timeout=10 -print_final_stats=1 -artifact_prefix="$artifacts/" "$corpus" "$src/fuzz/corpus/$t" > "$log" 2>&1
   rc=$?
@@ -52,10 +53,10 @@ for t in "$@"; do
   last=$(grep -E '^#[0-9]+.*cov: ' "$log" | tail -1)
   cov=$(sed -n 's/.* cov: \([0-9]*\).*/\1/p' <<< "$last")
   ft=$(sed -n 's/.* ft: \([0-9]*\).*/\1/p' <<< "$last")
-  found=$(ls "$artifacts" | wc -l)
+  found=$(find "$artifacts" -type f -newer "$log.start" | wc -l)  # this run's only
   what=none
   if [ "$rc" -ne 0 ] || [ "$found" -gt 0 ]; then
-    what="exit $rc, $found artifact(s) in $artifacts: $(grep -m1 -E '^==[0-9]+==ERROR|^SUMMARY|runtime error|ERROR: libFuzzer' "$log" | cut -c1-100)"
+    what="exit $rc, $found new artifact(s) in $artifacts: $(grep -m1 -E '^==[0-9]+==ERROR|^SUMMARY|runtime error|ERROR: libFuzzer' "$log" | cut -c1-100)"
     status=1
   fi
   rows+=("$(printf '%-12s %6s %10s %8s %6s %6s  %s' "$t" "$elapsed" "${execs:-?}" "${rate:-?}" "${cov:-?}" "${ft:-?}" "$what")")
