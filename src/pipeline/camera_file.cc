@@ -86,7 +86,7 @@ CameraIntrinsics FromOpenCv(const std::string& path, int image_width, int image_
   cv::FileStorage fs;
   try {
     if (!fs.open(path, cv::FileStorage::READ)) Bad(path, "not an OpenCV calibration file (YAML/XML/JSON) nor a camera JSON");
-  } catch (const cv::Exception&) {
+  } catch (const std::exception&) {  // cv::Exception, and std::length_error from OpenCV 4.6's YAML parser (fuzz_camera_file)
     Bad(path, "not an OpenCV calibration file (YAML/XML/JSON) nor a camera JSON");
   }
   // fs[name] asserts (cv::Exception) when a top-level node is not a map,
