@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT
 // Camera files (`--camera`, pipeline ReadCameraFile): the plain camera JSON
-// and OpenCV calibration output read by cv::FileStorage (YAML, XML, JSON).
+// and OpenCV calibration output read by cv::FileStorage (YAML, JSON; XML and
+// .gz are refused before it).
 // The first input byte picks the file extension (FileStorage goes by it) and
 // the image size the file is read for.
 #include <cstdlib>

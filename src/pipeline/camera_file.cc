@@ -2,6 +2,7 @@
 #include "pipeline/camera_file.h"
 
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
@@ -85,9 +86,9 @@ CameraIntrinsics FromPlainJson(const std::string& path, const nlohmann::json& ro
 CameraIntrinsics FromOpenCv(const std::string& path, int image_width, int image_height) {
   cv::FileStorage fs;
   try {
-    if (!fs.open(path, cv::FileStorage::READ)) Bad(path, "not an OpenCV calibration file (YAML/XML/JSON) nor a camera JSON");
+    if (!fs.open(path, cv::FileStorage::READ)) Bad(path, "not an OpenCV calibration file (YAML/JSON) nor a camera JSON");
   } catch (const std::exception&) {  // cv::Exception, and std::length_error from OpenCV 4.6's YAML parser (fuzz_camera_file)
-    Bad(path, "not an OpenCV calibration file (YAML/XML/JSON) nor a camera JSON");
+    Bad(path, "not an OpenCV calibration file (YAML/JSON) nor a camera JSON");
   }
   // fs[name] asserts (cv::Exception) when a top-level node is not a map,
   // e.g. "%YAML:1.0\n- 1" (found by fuzz/fuzz_camera_file.cc).
@@ -95,7 +96,7 @@ CameraIntrinsics FromOpenCv(const std::string& path, int image_width, int image_
     try {
       return fs[name];
     } catch (const cv::Exception&) {
-      Bad(path, "not an OpenCV calibration file (YAML/XML/JSON) nor a camera JSON");
+      Bad(path, "not an OpenCV calibration file (YAML/JSON) nor a camera JSON");
     }
   };
   auto matrix = [&](std::initializer_list<const char*> names) {
@@ -178,6 +179,14 @@ CameraIntrinsics ReadCameraFile(const std::string& path, int image_width, int im
     const nlohmann::json& c = j.contains("camera") && j["camera"].is_object() ? j["camera"] : j;
     if (c.contains("focal_px") || c.contains("fx_px")) return FromPlainJson(path, j, image_width, image_height);
   }
+  // OpenCV 4.6's XML reader dereferences a null pointer on malformed input
+  // ("<?xml vsion=", found by fuzz/fuzz_camera_file.cc), and FileStorage
+  // picks it by the content or the .xml extension (and reads .gz files
+  // through zlib, content unseen here): camera files are YAML or JSON.
+  const std::string ext = std::filesystem::path(path).extension().string();
+  const size_t first = s.find_first_not_of(" \t\r\n");
+  if ((first != std::string::npos && s[first] == '<') || ext == ".xml" || ext == ".XML" || ext == ".gz" || ext == ".GZ")
+    Bad(path, "XML and compressed calibration files are not read; save it as YAML or JSON");
   return FromOpenCv(path, image_width, image_height);
 }
 
