@@ -4,7 +4,7 @@ BUILD ?= build
 JOBS ?= $(shell nproc)
 CMAKE_FLAGS ?= -DCMAKE_BUILD_TYPE=Release
 
-.PHONY: all deps test-deps build demo test bench asan asan-unit tsan clean
+.PHONY: all deps test-deps build demo test bench asan asan-unit tsan fuzz fuzz-build fuzz-replay clean
 
 all: build
 
@@ -51,5 +51,25 @@ tsan: test-deps
 	cd build-tsan && TSAN_OPTIONS=halt_on_error=1:second_deadlock_stack=1:suppressions=$(CURDIR)/tests/tsan.supp ctest --output-on-failure \
 	  -R 'util/thread_pool_test|horizon/horizon_test|match/match_test|pipeline/register_photo_test|pipeline/batch_test'
 
+# libFuzzer targets (fuzz/, clang, ASan + UBSan) in build-fuzz: `make fuzz`
+# runs each for FUZZ_SECONDS (niced, one at a time) and prints execs/s and
+# coverage; `make fuzz-replay` runs the seed corpus and the saved crash inputs
+# once (seconds). FUZZ_TARGETS=dem picks targets.
+FUZZ_SECONDS ?= 60
+FUZZ_TARGETS ?= image dem exif sensors landmarks pose camera_file batch
+FUZZ_JOBS ?= 2
+fuzz-build:
+	@scripts/install_deps.sh
+	@scripts/install_deps.sh --fuzz
+	cmake -S . -B build-fuzz -DCMAKE_C_COMPILER=clang -DCMAKE_CXX_COMPILER=clang++ -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+	  -DHORIZONREG_PYTHON=OFF -DHORIZONREG_WERROR=OFF -DHORIZONREG_FUZZ=ON
+	cmake --build build-fuzz -j $(FUZZ_JOBS) --target $(addprefix fuzz_,$(FUZZ_TARGETS))
+
+fuzz: fuzz-build
+	scripts/run_fuzz.sh build-fuzz $(FUZZ_SECONDS) $(FUZZ_TARGETS)
+
+fuzz-replay: fuzz-build
+	scripts/run_fuzz.sh --replay build-fuzz $(FUZZ_TARGETS)
+
 clean:
-	rm -rf $(BUILD) build-asan build-tsan out
+	rm -rf $(BUILD) build-asan build-tsan build-fuzz out

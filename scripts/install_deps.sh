@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Installs the Debian packages horizonreg needs, skipping those present.
-# Usage: install_deps.sh [--test]   (--test adds what only the tests need)
+# Usage: install_deps.sh [--test | --fuzz]   (--test adds what only the tests
+# need, --fuzz clang and libFuzzer for `make fuzz`)
 set -euo pipefail
 packages=(
   build-essential cmake pkg-config file python3 bc
@@ -12,6 +13,9 @@ packages=(
 if [ "${1:-}" = "--test" ]; then
   packages+=(grass-core)  # the r.horizon comparison test
   packages+=(python3-pytest python3-distributed)  # the Python API and Dask tests
+fi
+if [ "${1:-}" = "--fuzz" ]; then
+  packages+=(clang libclang-rt-dev)  # libFuzzer (-fsanitize=fuzzer) comes with clang's compiler-rt
 fi
 missing=()
 for p in "${packages[@]}"; do

@@ -1,8 +1,10 @@
 // SPDX-License-Identifier: MIT
 // `horizonreg overlay`: the AR overlay over a photo at a registered pose.
 #include <CLI/CLI.hpp>
+#include <cmath>
 #include <iostream>
 #include <fstream>
+#include <limits>
 #include <nlohmann/json.hpp>
 
 #include "cli/commands.h"
@@ -42,8 +44,12 @@ double Number(const nlohmann::json& j, const char* key, const std::string& path)
 
 CameraPoseFile ReadPoseFile(const std::string& path) {
   const nlohmann::json j = ParseJson(ReadTextFile(path, "pose", size_t{64} << 20), "pose", path);
-  if (j.value("status", "registered") != "registered")
-    throw InvalidArgument("pose: '" + path + "' holds no pose (status " + j.value("status", "") + ")");
+  // (json::value() throws a type_error for a non-object or a non-string
+  // status, which would end as an unexplained exit 1: found by fuzz_pose.)
+  if (!j.is_object()) throw InvalidArgument("pose: '" + path + "' is not a JSON object");
+  if (j.contains("status") && j["status"] != "registered")
+    throw InvalidArgument("pose: '" + path + "' holds no pose (status " +
+                          (j["status"].is_string() ? j["status"].get<std::string>() : j["status"].dump()) + ")");
   if (!j.contains("observer") || !j["observer"].is_object())
     throw InvalidArgument("pose: '" + path + "' has no observer");
   CameraPoseFile p;
@@ -51,11 +57,14 @@ CameraPoseFile ReadPoseFile(const std::string& path) {
   p.lon = Number(j["observer"], "lon", path);
   p.eye_height_m = Number(j["observer"], "eye_height_m", path);
   p.pose = {Number(j, "azimuth_deg", path), Number(j, "pitch_deg", path), Number(j, "roll_deg", path)};
-  p.width = static_cast<int>(Number(j, "width", path));
-  p.height = static_cast<int>(Number(j, "height", path));
+  const double width = Number(j, "width", path), height = Number(j, "height", path);
   p.focal_px = Number(j, "focal_px", path);
-  if (!(p.focal_px > 0) || p.width < 1 || p.height < 1)
+  constexpr double kMaxSide = std::numeric_limits<int>::max();  // checked before the cast to int
+  if (!(p.focal_px > 0 && std::isfinite(p.focal_px)) || !(width >= 1 && width <= kMaxSide) ||
+      !(height >= 1 && height <= kMaxSide))
     throw InvalidArgument("pose: '" + path + "' has an invalid focal_px, width or height");
+  p.width = static_cast<int>(width);
+  p.height = static_cast<int>(height);
   p.intrinsics = CameraIntrinsics::FromHfov(p.width, p.height, 60.0);
   p.intrinsics.focal_px = p.focal_px;
   if (j.contains("camera") && j["camera"].is_object() && j["camera"].contains("focal_px")) {

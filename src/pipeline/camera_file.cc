@@ -2,6 +2,7 @@
 #include "pipeline/camera_file.h"
 
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
@@ -85,16 +86,32 @@ CameraIntrinsics FromPlainJson(const std::string& path, const nlohmann::json& ro
 CameraIntrinsics FromOpenCv(const std::string& path, int image_width, int image_height) {
   cv::FileStorage fs;
   try {
-    if (!fs.open(path, cv::FileStorage::READ)) Bad(path, "not an OpenCV calibration file (YAML/XML/JSON) nor a camera JSON");
-  } catch (const cv::Exception&) {
-    Bad(path, "not an OpenCV calibration file (YAML/XML/JSON) nor a camera JSON");
+    if (!fs.open(path, cv::FileStorage::READ)) Bad(path, "not an OpenCV calibration file (YAML/JSON) nor a camera JSON");
+  } catch (const std::exception&) {  // cv::Exception, and std::length_error from OpenCV 4.6's YAML parser (fuzz_camera_file)
+    Bad(path, "not an OpenCV calibration file (YAML/JSON) nor a camera JSON");
   }
+  // fs[name] asserts (cv::Exception) when a top-level node is not a map,
+  // e.g. "%YAML:1.0\n- 1" (found by fuzz/fuzz_camera_file.cc).
+  const auto top = [&](const char* name) {
+    try {
+      return fs[name];
+    } catch (const cv::Exception&) {
+      Bad(path, "not an OpenCV calibration file (YAML/JSON) nor a camera JSON");
+    }
+  };
   auto matrix = [&](std::initializer_list<const char*> names) {
     cv::Mat m;
     for (const char* n : names) {
-      const cv::FileNode node = fs[n];
+      const cv::FileNode node = top(n);
       if (node.empty()) continue;
       try {
+        // OpenCV allocates rows x cols before reading the data: a garbled
+        // size (a non-number reads as INT_MAX) would ask for gigabytes
+        // (found by fuzz/fuzz_camera_file.cc). The matrices here are at
+        // most 3 x 3 and 1 x 14.
+        const auto small = [](const cv::FileNode& d) { return d.isInt() && int(d) >= 1 && int(d) <= 16; };
+        if (!node.isMap() || !small(node["rows"]) || !small(node["cols"]))
+          Bad(path, std::string("\"") + n + "\" is not a matrix of at most 16 x 16");
         node >> m;
       } catch (const cv::Exception&) {
         Bad(path, std::string("\"") + n + "\" is not a matrix");
@@ -118,8 +135,8 @@ CameraIntrinsics FromOpenCv(const std::string& path, int image_width, int image_
   }
   CameraIntrinsics k;
   int w = 0, h = 0;
-  if (!fs["image_width"].empty()) fs["image_width"] >> w;
-  if (!fs["image_height"].empty()) fs["image_height"] >> h;
+  if (!top("image_width").empty()) top("image_width") >> w;
+  if (!top("image_height").empty()) top("image_height") >> h;
   if ((w > 0) != (h > 0)) Bad(path, "give both image_width and image_height or neither");
   k.width = w > 0 ? w : image_width;
   k.height = h > 0 ? h : image_height;
@@ -162,6 +179,14 @@ CameraIntrinsics ReadCameraFile(const std::string& path, int image_width, int im
     const nlohmann::json& c = j.contains("camera") && j["camera"].is_object() ? j["camera"] : j;
     if (c.contains("focal_px") || c.contains("fx_px")) return FromPlainJson(path, j, image_width, image_height);
   }
+  // OpenCV 4.6's XML reader dereferences a null pointer on malformed input
+  // ("<?xml vsion=", found by fuzz/fuzz_camera_file.cc), and FileStorage
+  // picks it by the content or the .xml extension (and reads .gz files
+  // through zlib, content unseen here): camera files are YAML or JSON.
+  const std::string ext = std::filesystem::path(path).extension().string();
+  const size_t first = s.find_first_not_of(" \t\r\n");
+  if ((first != std::string::npos && s[first] == '<') || ext == ".xml" || ext == ".XML" || ext == ".gz" || ext == ".GZ")
+    Bad(path, "XML and compressed calibration files are not read; save it as YAML or JSON");
   return FromOpenCv(path, image_width, image_height);
 }
 

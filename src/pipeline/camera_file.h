@@ -13,7 +13,8 @@ namespace horizonreg {
 
 // Reads a camera file and returns its intrinsics for an image of
 // image_width x image_height pixels. Formats:
-//  - OpenCV calibration output written by cv::FileStorage, YAML or JSON:
+//  - OpenCV calibration output written by cv::FileStorage, YAML or JSON (not
+//    XML nor .gz: OpenCV 4.6's XML reader crashes on malformed files):
 //    `camera_matrix` (3 x 3; also `cameraMatrix`, `K`),
 //    `distortion_coefficients` (k1, k2, p1, p2[, k3[, k4, k5, k6]]; also
 //    `distCoeffs`, `D`), optional `image_width`, `image_height`. OpenCV puts

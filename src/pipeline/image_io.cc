@@ -5,6 +5,7 @@
 
 #include <cstdint>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
@@ -16,7 +17,73 @@
 
 namespace horizonreg {
 
+namespace {
+
+using Size = std::optional<std::pair<int, int>>;
+
+Size Positive(int64_t w, int64_t h) {
+  if (w <= 0 || h <= 0 || w > 0x7fffffff || h > 0x7fffffff) return std::nullopt;
+  return std::make_pair(static_cast<int>(w), static_cast<int>(h));
+}
+
+// Little- or big-endian unsigned integers of n bytes at i (the caller checks the bounds).
+uint32_t Le(const std::vector<unsigned char>& b, size_t i, int n) {
+  uint32_t v = 0;
+  for (int k = n - 1; k >= 0; --k) v = (v << 8) | b[i + k];
+  return v;
+}
+uint32_t Be(const std::vector<unsigned char>& b, size_t i, int n) {
+  uint32_t v = 0;
+  for (int k = 0; k < n; ++k) v = (v << 8) | b[i + k];
+  return v;
+}
+
+// BMP: BITMAPINFOHEADER and later (signed 32-bit, negative height = top-down)
+// or the OS/2 BITMAPCOREHEADER (16-bit).
+Size BmpSize(const std::vector<unsigned char>& b) {
+  if (b.size() < 26 || b[0] != 'B' || b[1] != 'M') return std::nullopt;
+  if (Le(b, 14, 4) == 12) return Positive(Le(b, 18, 2), Le(b, 20, 2));
+  const int64_t h = static_cast<int32_t>(Le(b, 22, 4));
+  return Positive(static_cast<int32_t>(Le(b, 18, 4)), h < 0 ? -h : h);
+}
+
+// WebP: the lossy (VP8), lossless (VP8L) or extended (VP8X canvas) header.
+Size WebpSize(const std::vector<unsigned char>& b) {
+  if (b.size() < 30 || std::memcmp(&b[0], "RIFF", 4) != 0 || std::memcmp(&b[8], "WEBP", 4) != 0) return std::nullopt;
+  if (std::memcmp(&b[12], "VP8 ", 4) == 0) return Positive(Le(b, 26, 2) & 0x3fff, Le(b, 28, 2) & 0x3fff);
+  if (std::memcmp(&b[12], "VP8L", 4) == 0 && b[20] == 0x2f) {
+    const uint32_t bits = Le(b, 21, 4);
+    return Positive((bits & 0x3fff) + 1, ((bits >> 14) & 0x3fff) + 1);
+  }
+  if (std::memcmp(&b[12], "VP8X", 4) == 0) return Positive(Le(b, 24, 3) + 1, Le(b, 27, 3) + 1);
+  return std::nullopt;
+}
+
+// TIFF (classic, either byte order): ImageWidth and ImageLength of the first
+// IFD, the page OpenCV decodes.
+Size TiffSize(const std::vector<unsigned char>& b) {
+  if (b.size() < 8) return std::nullopt;
+  const bool le = b[0] == 'I' && b[1] == 'I' && b[2] == 42 && b[3] == 0;
+  if (!le && !(b[0] == 'M' && b[1] == 'M' && b[2] == 0 && b[3] == 42)) return std::nullopt;
+  const auto u = [&](size_t i, int n) { return le ? Le(b, i, n) : Be(b, i, n); };
+  const size_t ifd = u(4, 4);
+  if (ifd > b.size() || b.size() - ifd < 2) return std::nullopt;
+  const size_t n = u(ifd, 2);
+  int64_t w = 0, h = 0;
+  for (size_t e = ifd + 2, k = 0; k < n && e + 12 <= b.size(); ++k, e += 12) {
+    const uint32_t tag = u(e, 2), type = u(e + 2, 2);
+    if ((tag != 256 && tag != 257) || (type != 3 && type != 4)) continue;
+    (tag == 256 ? w : h) = type == 3 ? u(e + 8, 2) : u(e + 8, 4);
+  }
+  return Positive(w, h);
+}
+
+}  // namespace
+
 std::optional<std::pair<int, int>> DeclaredImageSize(const std::vector<unsigned char>& b) {
+  if (const Size s = BmpSize(b)) return s;
+  if (const Size s = WebpSize(b)) return s;
+  if (const Size s = TiffSize(b)) return s;
   const auto be16 = [&](size_t i) { return (b[i] << 8) | b[i + 1]; };
   if (b.size() >= 24 && b[0] == 0x89 && b[1] == 'P' && b[2] == 'N' && b[3] == 'G' && b[12] == 'I' && b[13] == 'H' &&
       b[14] == 'D' && b[15] == 'R') {

@@ -3,11 +3,13 @@
 
 #include <algorithm>
 #include <array>
+#include <cstdint>
 #include <cmath>
 #include <cstdio>
 #include <exiv2/exiv2.hpp>
 #include <mutex>
 #include <fstream>
+#include <limits>
 #include <nlohmann/json.hpp>
 #include <sstream>
 
@@ -149,7 +151,11 @@ SensorLog ReadSensorLog(const std::string& path) {
         if (!j[i].is_object()) throw InvalidArgument("not an object");
         SensorLogEntry e;
         e.reading = ParseSensorJson(j[i].dump(), path);
-        if (j[i].contains("frame") && j[i]["frame"].is_number_integer()) e.frame = j[i]["frame"].get<int>();
+        if (j[i].contains("frame") && j[i]["frame"].is_number_integer()) {
+          const int64_t frame = j[i]["frame"].get<int64_t>();
+          if (frame < 0 || frame > std::numeric_limits<int>::max()) throw InvalidArgument("bad frame");
+          e.frame = static_cast<int>(frame);
+        }
         if (j[i].contains("time_s") && j[i]["time_s"].is_number()) e.time_s = j[i]["time_s"].get<double>();
         if (!e.frame && !e.time_s) throw InvalidArgument("no frame or time_s");
         add(e);
@@ -187,7 +193,8 @@ SensorLog ReadSensorLog(const std::string& path) {
       const auto frame = cell(c_frame), time = cell(c_time), yaw = cell(c_yaw), pitch = cell(c_pitch),
                  roll = cell(c_roll);
       std::string why;
-      if ((frame && !(std::isfinite(*frame) && *frame >= 0 && *frame == std::floor(*frame))) ||
+      if ((frame && !(std::isfinite(*frame) && *frame >= 0 && *frame <= std::numeric_limits<int>::max() &&
+                      *frame == std::floor(*frame))) ||
           (time && !std::isfinite(*time)) || (!frame && !time))
         why = "bad frame/time";
       else if (yaw && !(std::isfinite(*yaw) && std::abs(*yaw) <= 720))
