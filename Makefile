@@ -39,7 +39,8 @@ asan: test-deps
 # The unit tests (every module's *_test) under AddressSanitizer + UBSan, and
 # the threaded code's tests under ThreadSanitizer: what .ci/run adds to `make test`.
 SAN_FLAGS = -DCMAKE_BUILD_TYPE=RelWithDebInfo -DHORIZONREG_PYTHON=OFF
-TSAN_TESTS = util_thread_pool_test horizon_horizon_test match_match_test pipeline_register_photo_test pipeline_batch_test
+TSAN_TESTS = util_thread_pool_test horizon_horizon_test match_match_test pipeline_register_photo_test pipeline_batch_test \
+  pipeline_locate_test
 asan-unit: test-deps
 	cmake -S . -B build-asan $(SAN_FLAGS) -DHORIZONREG_SANITIZE=ON
 	cmake --build build-asan -j $(JOBS)
@@ -49,7 +50,7 @@ tsan: test-deps
 	cmake -S . -B build-tsan $(SAN_FLAGS) -DHORIZONREG_TSAN=ON
 	cmake --build build-tsan -j $(JOBS) --target $(TSAN_TESTS)
 	cd build-tsan && TSAN_OPTIONS=halt_on_error=1:second_deadlock_stack=1:suppressions=$(CURDIR)/tests/tsan.supp ctest --output-on-failure \
-	  -R 'util/thread_pool_test|horizon/horizon_test|match/match_test|pipeline/register_photo_test|pipeline/batch_test'
+	  -R 'util/thread_pool_test|horizon/horizon_test|match/match_test|pipeline/register_photo_test|pipeline/batch_test|pipeline/locate_test'
 
 # libFuzzer targets (fuzz/, clang, ASan + UBSan) in build-fuzz: `make fuzz`
 # runs each for FUZZ_SECONDS (niced, one at a time) and prints execs/s and

@@ -409,9 +409,11 @@ LocateResult LocateInWindow(const TerrainWindow& window, const cv::Mat& image, c
     // moves while its best is not its centre (at most 3 times per step).
     const RegistrationOptions ro = registration_options(kPolishSigmaM);
     if (!polish) at = register_at(c.lat_deg, c.lon_deg, ro);  // its misfit only
-    for (int round = 0; polish && round < 7; ++round) {
-      // Steps of an eighth of the spacing (up to 3 moves), a sixteenth (2), a 32nd (1).
-      constexpr int kStepOf[] = {8, 8, 8, 16, 16, 32, 32};
+    // Steps of half the spacing (up to 2 moves; the best place only: it also
+    // shows how far away an equal fit can be), a quarter (2), an eighth (3),
+    // a sixteenth (2), a 32nd (1).
+    constexpr int kStepOf[] = {2, 2, 4, 4, 8, 8, 8, 16, 16, 32};
+    for (int round = i == 0 ? 0 : 4; polish && round < 10; ++round) {
       if (round > 0 && kStepOf[round] == kStepOf[round - 1] && at.lat == moved_from.lat && at.lon == moved_from.lon)
         continue;
       const double step = grid / kStepOf[round];
@@ -448,12 +450,25 @@ LocateResult LocateInWindow(const TerrainWindow& window, const cv::Mat& image, c
                                              std::abs(std::remainder(p.azimuth - at.azimuth, 360.0))});
       }
     c.position_rms_m = equal ? std::sqrt(spread2 / equal) : 0.0;
+    c.registered_azimuth_deg = at.azimuth, c.registered_pitch_deg = at.pitch;
     c.tried = true;
     c.registered = at.registered;
     c.misfit = at.misfit;
     c.message = at.message;
     if (c.registered && (best < 0 || c.misfit < out.candidates[best].misfit)) best = i;
   }
+  // Other places that register about as well count as equal fits too (two
+  // polished places 400 m apart that fit alike leave the position open by
+  // that much, and the orientation by what separates theirs).
+  if (best >= 0)
+    for (int i = 0; i < tries; ++i) {
+      LocateCandidate &b = out.candidates[best], &c = out.candidates[i];
+      if (i == best || !c.registered || !(c.misfit <= (1.0 + kEqualFit) * b.misfit)) continue;
+      b.position_spread_m = std::max(b.position_spread_m, DistanceM(b.lat_deg, b.lon_deg, c.lat_deg, c.lon_deg));
+      b.orientation_spread_deg =
+          std::max({b.orientation_spread_deg, std::abs(c.registered_pitch_deg - b.registered_pitch_deg),
+                    std::abs(std::remainder(c.registered_azimuth_deg - b.registered_azimuth_deg, 360.0))});
+    }
   const int answer = best >= 0 ? best : 0;
   po.position_sigma_m = std::max(kPolishSigmaM, grid / 64);  // the last 3 x 3's half spacing
   out.site = std::make_unique<Site>(TerrainWindow(window), out.candidates[answer].lat_deg,
@@ -474,6 +489,16 @@ LocateResult LocateInWindow(const TerrainWindow& window, const cv::Mat& image, c
     return out;
   }
 
+  // A searched position has had thousands of chances to fit by accident:
+  // the answer must fit closely as well (misfit per column).
+  if (!(out.candidates[0].misfit <= options.max_misfit)) {
+    std::ostringstream why;
+    why.precision(3);
+    why << "the best place fits too loosely for a searched position (misfit " << out.candidates[0].misfit << ", at most "
+        << options.max_misfit << ")";
+    out.message = why.str();
+    return out;
+  }
   // The other places' registrations must fit clearly worse (registered or
   // not: a place whose skyline nearly fits the photo is a rival).
   out.registration_distinctiveness = INFINITY;

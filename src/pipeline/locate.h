@@ -12,9 +12,10 @@
 //     a quarter, of the spacing on the full DEM at 0.25 deg.
 //  3. Exact: `RegisterPhoto` at the best fine viewpoints (the full
 //     registration, its gates included). The photo is located when the best
-//     registers, every other place tried fits clearly worse (misfit ratio at
-//     least 1.5) and the viewpoints around it that fit as well agree on the
-//     orientation within 0.3 deg; else no_match, with the runners-up listed.
+//     registers with a close fit (misfit <= 1), every other place tried fits
+//     clearly worse (misfit ratio at least 1.5) and the viewpoints that fit
+//     about as well (within 15%) agree on the orientation within 0.3 deg;
+//     else no_match, with the runners-up listed.
 #pragma once
 
 #include <string>
@@ -31,9 +32,10 @@ struct LocateOptions {
   double grid_m = 0.0;                  // coarse spacing; 0: radius / 30 within [100, 400] m
   double coarse_max_distance_m = 40'000.0;  // candidate horizons see this far (the final one: site.max_distance_m)
   double coarse_post_m = 200.0;         // candidate horizons on the DEM pooled to posts about this far apart
-  int coarse_keep = 8;                  // distinct coarse viewpoints refined
-  int register_keep = 4;                // fine viewpoints registered exactly
+  int coarse_keep = 12;                 // distinct coarse viewpoints refined
+  int register_keep = 12;               // fine viewpoints registered (those whose profile fits within 3x the best's polished)
   double min_distinctiveness = 1.5;     // every other place's registration misfit over the answer's, at least
+  double max_misfit = 1.0;              // the answer's registration misfit (mean truncated chi^2), at most
   double max_orientation_spread_deg = 0.3;  // viewpoints that fit equally well may disagree this much, no more
   SiteOptions site;                     // eye height (agl), refraction, horizon distance of the final registration
   PhotoOptions photo;                   // opening angle, EXIF, camera, as for `register`
@@ -52,7 +54,9 @@ struct LocateCandidate {
   std::string message;           // its status message
   // Of the viewpoints registered around it, those that fit about as well:
   // their largest and RMS distance from it and their largest orientation difference.
+  // Other places that register about as well count too.
   double position_spread_m = 0.0, position_rms_m = 0.0, orientation_spread_deg = 0.0;
+  double registered_azimuth_deg = NAN, registered_pitch_deg = NAN;  // the pose its registration found
 };
 
 struct LocateResult {
