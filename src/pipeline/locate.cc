@@ -11,6 +11,7 @@
 #include <sstream>
 
 #include "geo/conventions.h"
+#include "geo/geodesy.h"
 #include "util/angles.h"
 #include "util/errors.h"
 
@@ -145,23 +146,19 @@ TerrainWindow Coarsen(const TerrainWindow& window, double post_m) {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-constexpr double kPolishSigmaM = 3.0;
-constexpr double kRunnerUpCostRatio = 3.0;
-constexpr double kEqualFit = 0.15;  // viewpoints whose registration misfit is within 15% of the best fit as well  // runners-up registered when their profile misfit is within this ratio  // the position error the viewpoints are compared at, metres
+constexpr double kPolishSigmaM = 3.0;       // the position error the viewpoints are compared at, metres
+constexpr double kRunnerUpCostRatio = 3.0;  // runners-up polished when their profile misfit is within this ratio
+constexpr double kEqualFit = 0.15;          // registration misfits within 15% of the best fit as well
 double MsSince(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
 
-// Local east/north offsets (metres) to WGS84 (the area is at most tens of km).
+// A position east_m, north_m from (lat, lon) in its local tangent plane, and
+// the horizontal distance between two positions.
 GeodeticPoint Offset(double lat, double lon, double east_m, double north_m) {
-  const double s = std::sin(DegToRad(lat));
-  const double w = std::sqrt(1.0 - kWgs84E2 * s * s);
-  const double n_radius = kWgs84A / w, m_radius = kWgs84A * (1.0 - kWgs84E2) / (w * w * w);
-  return {lat + RadToDeg(north_m / m_radius), lon + RadToDeg(east_m / (n_radius * std::cos(DegToRad(lat)))), 0.0};
+  const GeodeticPoint p = LocalFrame({lat, lon, 0.0}).GeodeticFromEnu({east_m, north_m, 0.0});
+  return {p.lat_deg, p.lon_deg, 0.0};
 }
 double DistanceM(double lat0, double lon0, double lat1, double lon1) {
-  const double s = std::sin(DegToRad(lat0));
-  const double w = std::sqrt(1.0 - kWgs84E2 * s * s);
-  const double n_radius = kWgs84A / w, m_radius = kWgs84A * (1.0 - kWgs84E2) / (w * w * w);
-  return std::hypot(DegToRad(lat1 - lat0) * m_radius, DegToRad(lon1 - lon0) * n_radius * std::cos(DegToRad(lat0)));
+  return LocalFrame({lat0, lon0, 0.0}).EnuFromGeodetic({lat1, lon1, 0.0}).head<2>().norm();
 }
 
 struct Scored {
@@ -362,17 +359,7 @@ LocateResult LocateInWindow(const TerrainWindow& window, const cv::Mat& image, c
   auto registration_options = [&](double sigma_m) {
     PhotoOptions p = po;
     p.position_sigma_m = sigma_m;
-    // Only the DEM error model's part of the options depends on the site (a
-    // height above the ground: 2 m); a stand-in site with no window is not
-    // needed for that, so the options are built as RegisterPhoto builds them.
-    RegistrationOptions ro = p.registration;
-    PhotoHfovWindow(p, image.cols, image.rows, ro.min_hfov_deg, ro.max_hfov_deg);
-    ro.estimate_distortion = !p.pinhole;
-    if (p.camera) ro.known_intrinsics = p.camera->Resized(image.cols, image.rows);
-    ro.dem_error.position_sigma_m = sigma_m;
-    ro.dem_error.height_sigma_m = 2.0;
-    ro.Check();
-    return ro;
+    return PhotoRegistrationOptions(/*altitude_given=*/false, p, image.cols, image.rows);
   };
   struct Polished {
     double lat = 0, lon = 0, misfit = INFINITY;

@@ -113,6 +113,11 @@ std::string PhotoHfovWindow(const PhotoOptions& po, int width, int height, doubl
 
 RegistrationOptions PhotoRegistrationOptions(const Site& site, const PhotoOptions& po, int width, int height,
                                              std::string* fov_source) {
+  return PhotoRegistrationOptions(site.options().alt_m.has_value(), po, width, height, fov_source);
+}
+
+RegistrationOptions PhotoRegistrationOptions(bool altitude_given, const PhotoOptions& po, int width, int height,
+                                             std::string* fov_source) {
   po.Check();
   RegistrationOptions ro = po.registration;
   const std::string fov = PhotoHfovWindow(po, width, height, ro.min_hfov_deg, ro.max_hfov_deg);
@@ -125,7 +130,7 @@ RegistrationOptions PhotoRegistrationOptions(const Site& site, const PhotoOption
   // the observer (2 m).
   const bool surveyed = po.position_source == "arguments";
   ro.dem_error.position_sigma_m = po.position_sigma_m.value_or(surveyed ? 1.0 : 10.0);
-  ro.dem_error.height_sigma_m = site.options().alt_m ? (po.position_source == "exif" ? 20.0 : 1.0) : 2.0;
+  ro.dem_error.height_sigma_m = altitude_given ? (po.position_source == "exif" ? 20.0 : 1.0) : 2.0;
   ro.prior.compass_deg = po.sensors.compass_deg ? po.sensors.compass_deg : po.exif.compass_deg;
   if (!po.sensors.compass_deg && po.exif.compass_deg) ro.prior.compass_sigma_deg = 20.0;
   ro.prior.pitch_deg = po.sensors.pitch_deg;

@@ -91,6 +91,10 @@ std::string PhotoHfovWindow(const PhotoOptions& options, int width, int height, 
 // The registration options for a width x height photo at `site`.
 RegistrationOptions PhotoRegistrationOptions(const Site& site, const PhotoOptions& options, int width, int height,
                                              std::string* fov_source = nullptr);
+// The same for an eye given by its altitude (altitude_given) or its height
+// above the ground, wherever it stands (the site only says which).
+RegistrationOptions PhotoRegistrationOptions(bool altitude_given, const PhotoOptions& options, int width, int height,
+                                             std::string* fov_source = nullptr);
 
 // Registers an 8-bit BGR (or grey) photo taken at `site`; the stages run on
 // `pool` when given (else on their own threads). Never throws for a photo
