@@ -231,9 +231,7 @@ LocateResult LocateInWindow(const TerrainWindow& window, const cv::Mat& image, c
   // The opening angles `register` would search (arguments, EXIF or its default).
   double hfov_lo = po.registration.min_hfov_deg, hfov_hi = po.registration.max_hfov_deg;
   PhotoHfovWindow(po, image.cols, image.rows, hfov_lo, hfov_hi);
-  // The answer is one of the fine viewpoints, a quarter of the coarse spacing apart.
   po.position_source = "locate";
-  if (!po.position_sigma_m) po.position_sigma_m = grid / 8.0;
   std::vector<Profile> coarse_profiles, fine_profiles;
   for (double pitch : kPitchesDeg)
     for (double h : HfovsToTry(hfov_lo, hfov_hi, 1.12)) coarse_profiles.push_back(SkylineProfile(skyline, h, pitch, 1.0));
@@ -264,11 +262,12 @@ LocateResult LocateInWindow(const TerrainWindow& window, const cv::Mat& image, c
     }
     return s;
   };
-  auto run_all = [&](std::vector<Scored>& items, auto&& fn) {
+  // items[i] = fn(items[i]) for every item, on the pool when there is one.
+  auto run_all = [&](auto& items, auto&& fn) {
     if (pool) {
       pool->ParallelFor(items.size(), [&](size_t i, int) { items[i] = fn(items[i]); });
     } else {
-      for (Scored& s : items) s = fn(s);
+      for (auto& item : items) item = fn(item);
     }
   };
 
@@ -308,8 +307,8 @@ LocateResult LocateInWindow(const TerrainWindow& window, const cv::Mat& image, c
     return out;
   }
 
-  // 2. Fine: 5 x 5 at half the spacing around each seed on the pooled DEM,
-  // then 3 x 3 at a quarter around the best few on the full one.
+  // 2. Fine: 5 x 5 at half the spacing around each seed, then 3 x 3 at a
+  // quarter around the best of those, on the full DEM.
   t0 = Clock::now();
   auto local_grid = [&](const Scored& at, double step, int half) {
     std::vector<Scored> local;
@@ -343,9 +342,9 @@ LocateResult LocateInWindow(const TerrainWindow& window, const cv::Mat& image, c
                    [](const Scored& a, const Scored& b) { return a.cost < b.cost; });
   out.fine_ms = MsSince(t0);
 
-  // 3. Exact: the full registration on 3 x 3 viewpoints at an eighth, then
-  // a sixteenth of the spacing around each of the best (near ridges carry
-  // the position), the least misfit kept; then the answer's Site.
+  // 3. Exact: the full registration in a pattern search around each fine
+  // place (near ridges carry the position), the least misfit kept; then
+  // the answer's Site and its RegisterPhoto.
   t0 = Clock::now();
   for (const Scored& s : fine) {
     LocateCandidate c;
@@ -366,6 +365,12 @@ LocateResult LocateInWindow(const TerrainWindow& window, const cv::Mat& image, c
     bool registered = false;
     std::string message;
     double azimuth = NAN, pitch = NAN;
+  };
+  // Widens c's equal-fit spreads by a place that fits about as well.
+  auto widen = [](LocateCandidate& c, double lat, double lon, double azimuth, double pitch) {
+    c.position_spread_m = std::max(c.position_spread_m, DistanceM(c.lat_deg, c.lon_deg, lat, lon));
+    c.orientation_spread_deg = std::max({c.orientation_spread_deg, std::abs(pitch - c.registered_pitch_deg),
+                                         std::abs(std::remainder(azimuth - c.registered_azimuth_deg, 360.0))});
   };
   auto register_at = [&](double lat, double lon, const RegistrationOptions& ro) {
     Polished p;
@@ -405,23 +410,22 @@ LocateResult LocateInWindow(const TerrainWindow& window, const cv::Mat& image, c
         continue;
       const double step = grid / kStepOf[round];
       moved_from = at;
-      std::vector<Polished> local(9);
-      auto one = [&](size_t k, int) {
-        const GeodeticPoint p =
-            Offset(at.lat, at.lon, (static_cast<int>(k % 3) - 1) * step, (static_cast<int>(k / 3) - 1) * step);
-        local[k] = register_at(p.lat_deg, p.lon_deg, ro);
-      };
-      if (pool) {
-        pool->ParallelFor(local.size(), one);
-      } else {
-        for (size_t k = 0; k < local.size(); ++k) one(k, 0);
-      }
-      out.fine_viewpoints += 9;
+      std::vector<Polished> local;
+      for (int j = -1; j <= 1; ++j)
+        for (int k = -1; k <= 1; ++k) {
+          const GeodeticPoint g = Offset(at.lat, at.lon, k * step, j * step);
+          Polished p;
+          p.lat = g.lat_deg, p.lon = g.lon_deg;
+          local.push_back(p);
+        }
+      run_all(local, [&](const Polished& p) { return register_at(p.lat, p.lon, ro); });
+      out.fine_viewpoints += static_cast<int>(local.size());
       seen.insert(seen.end(), local.begin(), local.end());
       for (const Polished& p : local)  // registered first, then the least misfit
         if ((p.registered && !at.registered) || (p.registered == at.registered && p.misfit < at.misfit)) at = p;
     }
     c.lat_deg = at.lat, c.lon_deg = at.lon;
+    c.registered_azimuth_deg = at.azimuth, c.registered_pitch_deg = at.pitch;
     // How well the position is pinned: the viewpoints seen that register
     // about as well (misfit within kEqualFit), how far apart they stand and
     // how far apart their orientations are (position and orientation trade
@@ -432,12 +436,9 @@ LocateResult LocateInWindow(const TerrainWindow& window, const cv::Mat& image, c
       if (at.registered && p.registered && p.misfit <= (1.0 + kEqualFit) * at.misfit) {
         const double d = DistanceM(at.lat, at.lon, p.lat, p.lon);
         spread2 += d * d, ++equal;
-        c.position_spread_m = std::max(c.position_spread_m, d);
-        c.orientation_spread_deg = std::max({c.orientation_spread_deg, std::abs(p.pitch - at.pitch),
-                                             std::abs(std::remainder(p.azimuth - at.azimuth, 360.0))});
+        widen(c, p.lat, p.lon, p.azimuth, p.pitch);
       }
     c.position_rms_m = equal ? std::sqrt(spread2 / equal) : 0.0;
-    c.registered_azimuth_deg = at.azimuth, c.registered_pitch_deg = at.pitch;
     c.tried = true;
     c.registered = at.registered;
     c.misfit = at.misfit;
@@ -450,11 +451,8 @@ LocateResult LocateInWindow(const TerrainWindow& window, const cv::Mat& image, c
   if (best >= 0)
     for (int i = 0; i < tries; ++i) {
       LocateCandidate &b = out.candidates[best], &c = out.candidates[i];
-      if (i == best || !c.registered || !(c.misfit <= (1.0 + kEqualFit) * b.misfit)) continue;
-      b.position_spread_m = std::max(b.position_spread_m, DistanceM(b.lat_deg, b.lon_deg, c.lat_deg, c.lon_deg));
-      b.orientation_spread_deg =
-          std::max({b.orientation_spread_deg, std::abs(c.registered_pitch_deg - b.registered_pitch_deg),
-                    std::abs(std::remainder(c.registered_azimuth_deg - b.registered_azimuth_deg, 360.0))});
+      if (i != best && c.registered && c.misfit <= (1.0 + kEqualFit) * b.misfit)
+        widen(b, c.lat_deg, c.lon_deg, c.registered_azimuth_deg, c.registered_pitch_deg);
     }
   const int answer = best >= 0 ? best : 0;
   po.position_sigma_m = std::max(kPolishSigmaM, grid / 64);  // the last 3 x 3's half spacing
