@@ -79,7 +79,8 @@ struct BatchArgs {
   double refraction = kDefaultRefraction;
   double max_distance = 100'000.0;
   double step = 0.1;
-  bool pinhole = false, no_exif = false, no_progress = false, sea_level_fill = false;
+  bool pinhole = false, no_exif = false, no_progress = false, sea_level_fill = false, refine_position = false;
+  std::optional<double> position_sigma;
   double max_image_mpx = 250.0, max_dem_mb = 2048.0;
 };
 void AddBatchCommand(CLI::App& app, BatchArgs& args);

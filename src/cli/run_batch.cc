@@ -55,6 +55,12 @@ void AddBatchCommand(CLI::App& app, BatchArgs& a) {
   hfov->excludes(range);
   c->add_flag("--pinhole", a.pinhole, "The photos have no lens distortion: do not fit k1");
   c->add_flag("--no-exif", a.no_exif, "Ignore the photos' EXIF");
+  c->add_flag("--refine-position", a.refine_position,
+              "Also estimate each photo's latitude, longitude and eye height (as register --refine-position); "
+              "rows gain the \"position\" block, the CSV refined_lat, refined_lon, refined_eye_height_m");
+  c->add_option("--position-sigma", a.position_sigma,
+                "How far the positions may be off, metres, 1 sigma (default by each row's source, as register's)")
+      ->check(CLI::Range(0.0, 100000.0));
   c->add_option("--step", a.step, "Azimuth step of the DEM horizon, degrees")->capture_default_str();
   c->add_option("--refraction", a.refraction, "Refraction coefficient k")->capture_default_str();
   c->add_option("--max-distance", a.max_distance, "Terrain farther than this is ignored, metres")
@@ -157,6 +163,10 @@ int RunBatch(const BatchArgs& a) {
   if (!a.hfov_range.empty()) o.photo.hfov_range_deg = ParseHfovRange(a.hfov_range);
   o.photo.pinhole = a.pinhole;
   o.use_exif = !a.no_exif;
+  if (a.refine_position && a.position_sigma && !(*a.position_sigma > 0.0))
+    throw InvalidArgument("--position-sigma must be > 0 with --refine-position");
+  o.photo.position_sigma_m = a.position_sigma;
+  o.refine_position = a.refine_position;
   o.Check();
   if (!a.overlay_dir.empty()) {
     std::error_code ec;

@@ -14,6 +14,7 @@
 
 #include "pipeline/camera_file.h"
 #include "pipeline/image_io.h"
+#include "pipeline/position.h"
 #include "pipeline/report.h"
 #include "util/errors.h"
 #include "util/json.h"
@@ -225,6 +226,8 @@ void BatchOptions::Check() const {
   if (dem.empty() && !dem_for) throw InvalidArgument("batch: no DEM (give --dem or --dem-dir)");
   site.Check();
   photo.Check();
+  if (refine_position && photo.position_sigma_m && !(*photo.position_sigma_m > 0.0))
+    ThrowField("BatchOptions::photo.position_sigma_m", *photo.position_sigma_m, "> 0 with refine_position");
 }
 
 namespace {
@@ -336,6 +339,10 @@ size_t RunBatch(const std::vector<BatchItem>& items, const BatchOptions& options
         if (it.hfov_deg) po.hfov_deg = it.hfov_deg, po.hfov_range_deg.reset();
         if (it.initial) po.initial = it.initial;
         if (!it.camera_path.empty()) po.camera = ReadCameraFile(it.camera_path, image.cols, image.rows);
+        if (options.refine_position)
+          po.refine_position = DefaultPositionOptions(p.position.source,
+                                                      p.position.alt_m && p.position.source == "exif",
+                                                      options.photo.position_sigma_m);
         const PhotoRegistration r = RegisterPhoto(*site, image, po, &pool);
         nlohmann::json row = RegistrationReport(*site, r, p.position.source, SecondsSince(p0) * 1000.0);
         row["image"] = it.image;
@@ -357,7 +364,8 @@ const char* const kCsvColumns[] = {"image",        "station",       "status",   
                                    "pitch_deg",    "roll_deg",      "hfov_deg",         "center_azimuth_deg",
                                    "center_elevation_deg", "focal_px", "azimuth_sigma_deg", "pitch_sigma_deg",
                                    "roll_sigma_deg", "rms_px",      "inlier_fraction",  "lat",
-                                   "lon",          "eye_height_m",  "total_ms",         "message"};
+                                   "lon",          "eye_height_m",  "total_ms",         "message",
+                                   "refined_lat",  "refined_lon",   "refined_eye_height_m"};
 
 std::string CsvCell(const nlohmann::json& v) {
   if (v.is_null()) return "";
@@ -387,7 +395,9 @@ std::string BatchCsvLine(const nlohmann::json& row) {
                                        get("azimuth_sigma_deg"), get("pitch_sigma_deg"), get("roll_sigma_deg"),
                                        get("rms_px"),    get("inlier_fraction"), sub("observer", "lat"),
                                        sub("observer", "lon"), sub("observer", "eye_height_m"),
-                                       sub("timing_ms", "total"), get("message")};
+                                       sub("timing_ms", "total"), get("message"),
+                                       sub("position", "lat"), sub("position", "lon"),
+                                       sub("position", "eye_height_m")};
   std::string line;
   for (size_t i = 0; i < cells.size(); ++i) line += (i ? "," : "") + CsvCell(cells[i]);
   return line;

@@ -75,6 +75,10 @@ struct BatchOptions {
   SiteOptions site;    // step, refraction, distance (the position comes from each row)
   PhotoOptions photo;  // defaults for every photo (opening angle, pinhole, thresholds)
   bool use_exif = true;
+  // Refine each photo's position too, within the prior its position's
+  // source sets (DefaultPositionOptions; photo.position_sigma_m overrides
+  // the horizontal sigma): each row then has the "position" block.
+  bool refine_position = false;
   double max_image_pixels = kDefaultMaxImagePixels;  // larger photos are error rows (ReadImage)
   void Check() const;
 };

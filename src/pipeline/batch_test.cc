@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT
 #include "pipeline/batch.h"
 
+#include "pipeline/position.h"
 #include "pipeline/report.h"
 
 #include <gtest/gtest.h>
@@ -31,6 +32,29 @@ class BatchTest : public ::testing::Test {
   void Write(const std::string& name, const std::string& text) { std::ofstream(dir / name) << text; }
   fs::path dir;
 };
+
+constexpr char kDemoDem[] = "/usr/share/matplotlib/mpl-data/sample_data/jacksboro_fault_dem.npz";
+constexpr double kDemoLat = 36.51979713, kDemoLon = -84.16396352;  // the demo's valley floor
+
+// Poses of views where the site's horizon has the most relief (as the demo
+// picks them), the best first: every other of the 5-deg steps ranked by the
+// spread of the elevation within +-22.5 deg.
+std::vector<CameraPose> ReliefPoses(const Site& site, int n) {
+  std::vector<std::array<double, 3>> relief;  // std dev, azimuth, mean elevation
+  for (double az = 0.0; az < 360.0; az += 5.0) {
+    double sum = 0.0, sum2 = 0.0;
+    int m = 0;
+    for (double d = -22.5; d <= 22.5; d += 0.5, ++m) {
+      const double e = site.horizon().ElevationAtDeg(std::fmod(az + d + 360.0, 360.0));
+      sum += e, sum2 += e * e;
+    }
+    relief.push_back({std::sqrt(std::max(0.0, sum2 / m - sum * sum / m / m)), az, sum / m});
+  }
+  std::sort(relief.rbegin(), relief.rend());
+  std::vector<CameraPose> poses;
+  for (int i = 0; i < n; ++i) poses.push_back({relief[2 * i][1] + 1.3, relief[2 * i][2] - 4.0, 0.5});
+  return poses;
+}
 
 TEST_F(BatchTest, ReadsCsvAndJsonManifestsWithStations) {
   Write("stations.csv", "station,lat,lon,agl_m,hfov_deg\ncam1,46.0,8.0,1.7,50\n");
@@ -76,29 +100,17 @@ TEST_F(BatchTest, RejectsMalformedManifestsNamingTheLine) {
 // bad ones as error rows, the others exactly as RegisterPhoto gives them one
 // at a time (ThreadSanitizer runs this in CI).
 TEST_F(BatchTest, RegistersInParallelLikeOneAtATimeAndTurnsBadPhotosIntoErrorRows) {
-  const std::string dem = "/usr/share/matplotlib/mpl-data/sample_data/jacksboro_fault_dem.npz";
+  const std::string dem = kDemoDem;
   if (!fs::exists(dem)) GTEST_SKIP() << "python-matplotlib-data is not installed";
-  const double lat = 36.51979713, lon = -84.16396352;  // the demo's valley floor
+  const double lat = kDemoLat, lon = kDemoLon;
   const Site site({dem}, lat, lon, SiteOptions{});
   const auto k = CameraIntrinsics::FromHfov(480, 320, 45.0);
   std::string manifest = "image,lat,lon\n";
   std::vector<cv::Mat> views;
-  // Views where the horizon has the most relief (as the demo picks them).
-  std::vector<std::array<double, 3>> relief;  // std dev, azimuth, mean elevation
-  for (double az = 0.0; az < 360.0; az += 5.0) {
-    double sum = 0.0, sum2 = 0.0;
-    int m = 0;
-    for (double d = -22.5; d <= 22.5; d += 0.5, ++m) {
-      const double e = site.horizon().ElevationAtDeg(std::fmod(az + d + 360.0, 360.0));
-      sum += e, sum2 += e * e;
-    }
-    relief.push_back({std::sqrt(std::max(0.0, sum2 / m - sum * sum / m / m)), az, sum / m});
-  }
-  std::sort(relief.rbegin(), relief.rend());
+  const std::vector<CameraPose> poses = ReliefPoses(site, 4);
   for (int i = 0; i < 4; ++i) {
     const std::string name = "v" + std::to_string(i) + ".png";
-    const CameraPose pose{relief[2 * i][1] + 1.3, relief[2 * i][2] - 4.0, 0.5};
-    views.push_back(RenderView(site.window(), site.observer(), pose, k, RenderOptions{}));
+    views.push_back(RenderView(site.window(), site.observer(), poses[i], k, RenderOptions{}));
     cv::imwrite((dir / name).string(), views.back());
     manifest += name + "," + std::to_string(lat) + "," + std::to_string(lon) + "\n";
   }
@@ -135,6 +147,39 @@ TEST_F(BatchTest, RegistersInParallelLikeOneAtATimeAndTurnsBadPhotosIntoErrorRow
     registered += row["status"] == "registered";
   }
   EXPECT_GE(registered, 2);
+}
+
+// --refine-position in a batch: each row is register --refine-position's
+// report (the "position" block included), and the CSV carries the refined
+// position.
+TEST_F(BatchTest, RefinesEachPhotosPositionWhenAsked) {
+  if (!fs::exists(kDemoDem)) GTEST_SKIP() << "python-matplotlib-data is not installed";
+  const Site site({kDemoDem}, kDemoLat, kDemoLon, SiteOptions{});
+  const CameraPose pose = ReliefPoses(site, 1)[0];
+  cv::imwrite((dir / "v.png").string(), RenderView(site.window(), site.observer(), pose,
+                                                   CameraIntrinsics::FromHfov(480, 320, 45.0), RenderOptions{}));
+  Write("m.csv", "image,lat,lon\nv.png," + std::to_string(kDemoLat) + "," + std::to_string(kDemoLon) + "\n");
+  BatchOptions o;
+  o.dem = {kDemoDem};
+  o.refine_position = true;
+  ThreadPool pool(2);
+  nlohmann::json row;
+  RunBatch(ReadManifest((dir / "m.csv").string()), o, pool, [&](const BatchResult& r) { row = r.row; });
+  ASSERT_TRUE(row.contains("position")) << row.dump();
+  const Site alone({kDemoDem}, std::stod(std::to_string(kDemoLat)), std::stod(std::to_string(kDemoLon)), SiteOptions{});
+  PhotoOptions po;
+  po.refine_position = DefaultPositionOptions("arguments", false, std::nullopt);
+  nlohmann::json ref =
+      RegistrationReport(alone, RegisterPhoto(alone, cv::imread((dir / "v.png").string()), po), "arguments", 0.0);
+  row.erase("timing_ms"), row.erase("image"), ref.erase("timing_ms");
+  EXPECT_EQ(row, ref);
+  const std::string header = BatchCsvHeader(), line = BatchCsvLine(row);
+  EXPECT_NE(header.find(",refined_lat,refined_lon,refined_eye_height_m"), std::string::npos);
+  EXPECT_EQ(std::count(line.begin(), line.end(), ','), std::count(header.begin(), header.end(), ','));
+  EXPECT_EQ(line.substr(line.rfind(',') + 1), nlohmann::json(row["position"]["eye_height_m"]).dump());
+
+  o.photo.position_sigma_m = 0.0;
+  EXPECT_THROW(o.Check(), InvalidArgument);
 }
 
 }  // namespace

@@ -22,6 +22,7 @@
 #include "pipeline/batch.h"
 #include "pipeline/camera_file.h"
 #include "pipeline/image_io.h"
+#include "pipeline/position.h"
 #include "pipeline/register_photo.h"
 #include "pipeline/report.h"
 #include "pipeline/site.h"
@@ -110,7 +111,7 @@ std::unique_ptr<PySite> MakeSite(double lat, double lon, const std::vector<std::
 py::object PyRegister(const py::object& image, const PySite& site, std::optional<double> hfov,
                     std::optional<std::pair<double, double>> hfov_range, const py::object& camera,
                     const py::object& sensors, std::optional<std::vector<double>> initial, bool pinhole,
-                    std::optional<bool> exif) {
+                    std::optional<bool> exif, bool refine_position, std::optional<double> position_sigma) {
   const auto t0 = std::chrono::steady_clock::now();
   cv::Mat mat;
   PhotoOptions po;
@@ -137,6 +138,11 @@ py::object PyRegister(const py::object& image, const PySite& site, std::optional
     std::snprintf(buf, sizeof(buf), "%.17g,%.17g,%.17g,%.17g", (*initial)[0], (*initial)[1], (*initial)[2], (*initial)[3]);
     po.initial = ParseInitialPose(buf, "initial");
   }
+  po.position_sigma_m = position_sigma;
+  if (refine_position) {
+    if (position_sigma && !(*position_sigma > 0.0)) ThrowField("position_sigma", *position_sigma, "> 0 with refine_position");
+    po.refine_position = DefaultPositionOptions("arguments", false, position_sigma);
+  }
   po.Check();
   nlohmann::json j;
   {
@@ -151,7 +157,8 @@ py::object PyRegister(const py::object& image, const PySite& site, std::optional
 
 BatchOptions MakeBatchOptions(const std::vector<std::string>& dem, const std::string& dem_dir, std::optional<double> hfov,
                               std::optional<std::pair<double, double>> hfov_range, bool pinhole, bool exif, double step,
-                              double refraction, double max_distance, bool sea_level_fill) {
+                              double refraction, double max_distance, bool sea_level_fill, bool refine_position,
+                              std::optional<double> position_sigma) {
   BatchOptions o;
   o.dem = dem;
   if (!dem_dir.empty()) {
@@ -165,6 +172,8 @@ BatchOptions MakeBatchOptions(const std::vector<std::string>& dem, const std::st
   o.photo.hfov_range_deg = hfov_range;
   o.photo.pinhole = pinhole;
   o.use_exif = exif;
+  o.refine_position = refine_position;
+  o.photo.position_sigma_m = position_sigma;
   o.Check();
   return o;
 }
@@ -273,7 +282,9 @@ PYBIND11_MODULE(_core, m) {
   m.def("register", &PyRegister, py::arg("image"), py::arg("site"), py::arg("hfov") = py::none(),
         py::arg("hfov_range") = py::none(), py::arg("camera") = py::none(), py::arg("sensors") = py::none(),
         py::arg("initial") = py::none(), py::arg("pinhole") = false, py::arg("exif") = py::none(),
-        "Registers a photo (numpy array or path) taken at `site`: the register JSON as a dict.");
+        py::arg("refine_position") = false, py::arg("position_sigma") = py::none(),
+        "Registers a photo (numpy array or path) taken at `site`: the register JSON as a dict; with "
+        "refine_position, also the site's latitude, longitude and eye height (the \"position\" block).");
 
   m.def(
       "draw_overlay",
@@ -319,10 +330,11 @@ PYBIND11_MODULE(_core, m) {
       [](const py::list& rows, const std::string& base_dir, const std::vector<std::string>& dem,
          const std::string& dem_dir, std::optional<double> hfov, std::optional<std::pair<double, double>> hfov_range,
          bool pinhole, bool exif, double step, double refraction, double max_distance, bool sea_level_fill,
-         int threads) {
+         bool refine_position, std::optional<double> position_sigma, int threads) {
         const std::vector<BatchItem> items = ManifestFromJson(FromPy(rows), base_dir, "rows");
         const BatchOptions o =
-            MakeBatchOptions(dem, dem_dir, hfov, hfov_range, pinhole, exif, step, refraction, max_distance, sea_level_fill);
+            MakeBatchOptions(dem, dem_dir, hfov, hfov_range, pinhole, exif, step, refraction, max_distance, sea_level_fill,
+                             refine_position, position_sigma);
         std::vector<std::pair<size_t, nlohmann::json>> out;
         {
           py::gil_scoped_release release;
@@ -341,7 +353,8 @@ PYBIND11_MODULE(_core, m) {
       py::arg("rows"), py::arg("base_dir") = ".", py::arg("dem") = std::vector<std::string>{}, py::arg("dem_dir") = "",
       py::arg("hfov") = py::none(), py::arg("hfov_range") = py::none(), py::arg("pinhole") = false,
       py::arg("exif") = true, py::arg("step") = kRegistrationStepDeg, py::arg("refraction") = kDefaultRefraction,
-      py::arg("max_distance") = 100'000.0, py::arg("sea_level_fill") = false, py::arg("threads") = 0,
+      py::arg("max_distance") = 100'000.0, py::arg("sea_level_fill") = false, py::arg("refine_position") = false,
+      py::arg("position_sigma") = py::none(), py::arg("threads") = 0,
       "Registers manifest rows (dicts with the manifest's columns) as `horizonreg batch` does: one row dict per "
       "photo, in the rows' order.");
 }

@@ -22,7 +22,8 @@ import sys
 
 from . import _core
 
-_OPTIONS = ("hfov", "hfov_range", "pinhole", "exif", "step", "refraction", "max_distance", "sea_level_fill")
+_OPTIONS = ("hfov", "hfov_range", "pinhole", "exif", "step", "refraction", "max_distance", "sea_level_fill",
+            "refine_position", "position_sigma")
 
 
 def _station_key(item):
@@ -56,7 +57,7 @@ def register_archive(manifest, dem=(), dem_dir="", stations="", client=None, sch
     """Registers every photo of `manifest` on a dask cluster: `client` if given, else a Client of
     `scheduler` (an address), else a LocalCluster of n_workers processes. `options` are
     batch_rows's (hfov, hfov_range, pinhole, exif, step, refraction, max_distance,
-    sea_level_fill). Returns the rows (dicts) in manifest order."""
+    sea_level_fill, refine_position, position_sigma). Returns the rows (dicts) in manifest order."""
     unknown = set(options) - set(_OPTIONS)
     if unknown:
         raise ValueError(f"register_archive: unknown option(s) {sorted(unknown)}")
@@ -103,10 +104,13 @@ def main(argv=None):
     p.add_argument("--scheduler")
     p.add_argument("--workers", type=int, default=2)
     p.add_argument("--threads-per-worker", type=int, default=1)
+    p.add_argument("--refine-position", action="store_true",
+                   help="also estimate each photo's position (as horizonreg batch --refine-position)")
     a = p.parse_args(argv)
     try:
         rows = register_archive(a.manifest, dem=a.dem, dem_dir=a.dem_dir, stations=a.stations, scheduler=a.scheduler,
-                                n_workers=a.workers, threads_per_worker=a.threads_per_worker)
+                                n_workers=a.workers, threads_per_worker=a.threads_per_worker,
+                                refine_position=a.refine_position)
     except (ValueError, OSError) as e:
         print(f"horizonreg.dask: {e}", file=sys.stderr)
         return 2

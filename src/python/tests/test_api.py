@@ -95,6 +95,23 @@ def test_register_equals_the_command_line(site, views):
     assert {k: x for k, x in r.items() if k not in drop} == {k: x for k, x in ref.items() if k not in drop}
 
 
+def test_refine_position_equals_the_command_line_and_batch(site, views, tmp_path):
+    v = views[0]
+    o = v["observer"]
+    p = subprocess.run([BIN, "register", v["image"], "--dem", JACKSBORO, "--lat", repr(o["lat"]), "--lon", repr(o["lon"]),
+                        "--refine-position"], capture_output=True, text=True, check=True)
+    ref = json.loads(p.stdout)
+    assert "position" in ref
+    r = horizonreg.register(v["image"], site, refine_position=True)
+    drop = ("timing_ms", "image")
+    assert {k: x for k, x in r.items() if k not in drop} == {k: x for k, x in ref.items() if k not in drop}
+    rows = horizonreg.batch_rows([{"image": v["image"], "lat": o["lat"], "lon": o["lon"]}], dem=[JACKSBORO],
+                                 refine_position=True, threads=2)
+    assert rows[0]["position"] == ref["position"]
+    with pytest.raises(ValueError, match="position_sigma"):
+        horizonreg.register(v["image"], site, refine_position=True, position_sigma=0.0)
+
+
 def test_draw_overlay_returns_a_new_image(site, views):
     img = horizonreg.read_image(views[0]["image"])
     r = horizonreg.register(img, site)
