@@ -167,9 +167,9 @@ PhotoRegistration RegisterPhoto(const Site& site, const cv::Mat& image_in, const
   } else {
     // A known approximate pose (a fixed camera, a pose a few degrees off):
     // the search constrained to it (priors of a few degrees, the opening
-    // angle within 5% unless given), else the graduated local fit from it,
-    // which starts at a noise scale of 50 px per 1000 (about 2.5 deg at a
-    // 50-deg opening angle).
+    // angle within 5% unless given), else, when the search fitted no pose,
+    // the graduated local fit from it, which starts at a noise scale of
+    // 50 px per 1000 (about 2.5 deg at a 50-deg opening angle).
     const CameraPose start{WrapAzimuthDeg(po.initial->azimuth_deg), po.initial->pitch_deg, po.initial->roll_deg};
     RegistrationOptions constrained = ro;
     constrained.prior.compass_deg = start.azimuth_deg;
@@ -182,7 +182,10 @@ PhotoRegistration RegisterPhoto(const Site& site, const cv::Mat& image_in, const
       constrained.min_hfov_deg = po.initial->hfov_deg * 0.95,
       constrained.max_hfov_deg = std::min(169.0, po.initial->hfov_deg * 1.05);
     r = RegisterImage(image, out.skyline, horizon, constrained);
-    if (!r.registered)
+    // The local fit only where the search fitted no pose: where it did and
+    // refused it (a rival nearby, too large a residual), a fit from the start
+    // would walk into that rival's basin and, judged alone, pass.
+    if (!r.registered && !(r.focal_px > 0.0))
       r = RefinePose(out.skyline, horizon, start, FocalFromHfovPx(po.initial->hfov_deg, image.cols), hfov_given, ro,
                      50.0);
   }
