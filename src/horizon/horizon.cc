@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <optional>
 #include <sstream>
 
 #include "horizon/sweep.h"
@@ -270,19 +271,47 @@ HorizonProfile ComputeHorizon(const TerrainWindow& terrain, const GeodeticPoint&
   out.lon_deg.assign(n, NAN);
   out.height_m.assign(n, NAN);
   out.post_spacing_m.assign(n, NAN);
+  out.relief_slope.assign(n, NAN);
   std::vector<double> spacing;
   for (const DemGrid& g : terrain.grids) spacing.push_back(g.width >= 2 && g.height >= 2 ? g.SpacingM() : NAN);
   size_t grid = 0;  // the horizon's neighbouring bins mostly lie in the same grid: try the last one first
-  auto spacing_at = [&](double lat, double lon) {
-    if (terrain.grids.size() == 1) return spacing[0];
+  // Bilinear height at a fractional post (col, row); NaN outside or on a void.
+  auto bilinear = [](const DemGrid& g, double col, double row) {
+    if (!(col >= 0.0 && row >= 0.0 && col <= g.width - 1.0 && row <= g.height - 1.0)) return static_cast<double>(NAN);
+    const int c = std::min(static_cast<int>(col), g.width - 2), r = std::min(static_cast<int>(row), g.height - 2);
+    const double fx = col - c, fy = row - r;
+    return (1 - fy) * ((1 - fx) * g.At(c, r) + fx * g.At(c + 1, r)) +
+           fy * ((1 - fx) * g.At(c, r + 1) + fx * g.At(c + 1, r + 1));
+  };
+  // The grid holding (lat, lon) with data, and the fractional post there.
+  struct GridPoint {
+    size_t grid;
+    double col, row;
+  };
+  auto grid_at = [&](double lat, double lon) -> std::optional<GridPoint> {
     for (size_t k = 0; k < terrain.grids.size(); ++k) {
       const size_t g = (grid + k) % terrain.grids.size();
-      if (terrain.grids[g].HeightAt(lat, lon)) {
+      const auto px = terrain.grids[g].PixelOf(lat, lon);
+      if (px && std::isfinite(bilinear(terrain.grids[g], px->first, px->second))) {
         grid = g;
-        return spacing[g];
+        return GridPoint{g, px->first, px->second};
       }
     }
-    return *std::max_element(spacing.begin(), spacing.end());
+    return std::nullopt;
+  };
+  // Steepest descent from the point to the points one post away in the 8
+  // directions of the grid (along rows, columns and diagonals), rise over run.
+  auto relief_at = [&](const GridPoint& p, double s) {
+    const DemGrid& g = terrain.grids[p.grid];
+    const double h0 = bilinear(g, p.col, p.row);
+    if (!(s > 0.0)) return static_cast<double>(NAN);
+    double steepest = 0.0;
+    for (int dy = -1; dy <= 1; ++dy)
+      for (int dx = -1; dx <= 1; ++dx) {
+        const double h = bilinear(g, p.col + dx, p.row + dy);
+        if ((dx || dy) && std::isfinite(h)) steepest = std::max(steepest, (h0 - h) / (s * std::hypot(dx, dy)));
+      }
+    return steepest;
   };
   const auto& best = accs[0].best();
   for (int i = 0; i < n; ++i) {
@@ -294,7 +323,9 @@ HorizonProfile ComputeHorizon(const TerrainWindow& terrain, const GeodeticPoint&
     out.lat_deg[i] = g.lat_deg;
     out.lon_deg[i] = g.lon_deg;
     out.height_m[i] = b.h;
-    out.post_spacing_m[i] = spacing_at(g.lat_deg, g.lon_deg);
+    const std::optional<GridPoint> gp = grid_at(g.lat_deg, g.lon_deg);
+    out.post_spacing_m[i] = gp ? spacing[gp->grid] : *std::max_element(spacing.begin(), spacing.end());
+    if (gp) out.relief_slope[i] = relief_at(*gp, spacing[gp->grid]);
   }
   return out;
 }

@@ -37,6 +37,10 @@ struct HorizonProfile {
                                                    // distance within 0.1%)
   std::vector<double> lat_deg, lon_deg, height_m;  // the horizon point, height as in the DEM
   std::vector<double> post_spacing_m;              // post spacing of the DEM grid the horizon point lies in
+  // Steepest descent from the horizon point over one post spacing (rise
+  // over run, >= 0): how sharp the terrain is there (a ridge's flanks, a
+  // dome's shoulder), which sets how much the grid cuts off it.
+  std::vector<double> relief_slope;
 
   int size() const { return static_cast<int>(elevation_deg.size()); }
   double AzimuthDeg(int i) const { return i * azimuth_step_deg; }

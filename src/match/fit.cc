@@ -12,6 +12,10 @@
 
 namespace horizonreg::match_detail {
 
+namespace {
+constexpr double kMinSharpness = 0.25, kMaxSharpness = 4.0;  // DemErrorModel::typical_slope's range
+}  // namespace
+
 HorizonLookup::HorizonLookup(const HorizonProfile& p, const DemErrorModel& model)
     : profile_(&p),
       n_(p.size()),
@@ -28,7 +32,11 @@ HorizonLookup::HorizonLookup(const HorizonProfile& p, const DemErrorModel& model
     el_[i] = DegToRad(p.elevation_deg[i]);
     const double d = std::isfinite(p.distance_m[i]) ? std::max(p.distance_m[i], 1.0) : 1e9;
     spacing[i] = i < static_cast<int>(p.post_spacing_m.size()) ? p.post_spacing_m[i] : NAN;
-    const double cut_m = std::isfinite(spacing[i]) ? model.flattening_spacings * spacing[i] : 0.0;
+    const double slope = i < static_cast<int>(p.relief_slope.size()) && std::isfinite(p.relief_slope[i])
+                             ? p.relief_slope[i]
+                             : model.typical_slope;
+    const double sharpness = std::clamp(slope / model.typical_slope, kMinSharpness, kMaxSharpness);
+    const double cut_m = std::isfinite(spacing[i]) ? model.flattening_spacings * spacing[i] * sharpness : 0.0;
     flat[i] = std::hypot(cut_m / d, floor_rad);
     pos[i] = position_m / d;
   }

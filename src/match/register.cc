@@ -48,6 +48,8 @@ void DemErrorModel::Check() const {
     ThrowField("DemErrorModel::flattening_spacings", flattening_spacings, "0 <= value <= 10");
   if (!(flattening_floor_deg >= 0.0 && flattening_floor_deg <= 5.0))
     ThrowField("DemErrorModel::flattening_floor_deg", flattening_floor_deg, "0 <= value <= 5");
+  if (!(typical_slope > 0.0 && std::isfinite(typical_slope)))
+    ThrowField("DemErrorModel::typical_slope", typical_slope, "0 < value < inf");
   if (!(position_sigma_m >= 0.0 && position_sigma_m <= 100'000.0))
     ThrowField("DemErrorModel::position_sigma_m", position_sigma_m, "0 <= value <= 100 km");
   if (!(height_sigma_m >= 0.0 && height_sigma_m <= 100'000.0))
@@ -88,6 +90,8 @@ void RegistrationOptions::Check() const {
   if (!(min_inlier_fraction >= 0.0 && min_inlier_fraction <= 1.0))
     ThrowField("RegistrationOptions::min_inlier_fraction", min_inlier_fraction, "0 <= f <= 1");
   if (!(max_rms_px > 0.0)) ThrowField("RegistrationOptions::max_rms_px", max_rms_px, "max_rms_px > 0");
+  if (!(min_misfit_ratio >= 0.0 && min_misfit_ratio <= 1.0))
+    ThrowField("RegistrationOptions::min_misfit_ratio", min_misfit_ratio, "0 <= min_misfit_ratio <= 1");
   if (!(min_ambiguity_ratio >= 1.0))
     ThrowField("RegistrationOptions::min_ambiguity_ratio", min_ambiguity_ratio, "min_ambiguity_ratio >= 1");
   if (!(min_informative_fraction >= 0.0 && min_informative_fraction <= 1.0))
@@ -144,6 +148,9 @@ bool ByCost(const Candidate& x, const Candidate& y) {
 // Hypotheses kept after scoring (the refinement draws its distinct
 // candidates from these).
 constexpr size_t kKeptHypotheses = 64;
+// Longest gap in the skyline bridged for finding its peaks and dips, as a
+// share of the width.
+constexpr double kMaxBridgedGap = 0.03;
 
 bool SamePose(const Pose4& a, const Pose4& b, double width) {
   const double hfov = 2.0 * std::atan(0.5 * width / a.f);
@@ -252,7 +259,10 @@ void FinishRegistration(const Scorer& scorer, const ImageFrame& frame, std::vect
   else if (!(stats.model_rms_px <= options.max_rms_px * px_scale))
     why << "residual " << stats.model_rms_px << " px too large";
   else if (out.ambiguity_ratio < options.min_ambiguity_ratio)
-    why << "ambiguous: another pose fits almost as well (misfit ratio " << out.ambiguity_ratio << ")";
+    why << "ambiguous: another pose fits almost as well (cost ratio " << out.ambiguity_ratio << ")";
+  else if (out.second_misfit < options.min_misfit_ratio * out.misfit)
+    why << "ambiguous: another pose fits the skyline more closely (misfit ratio " << out.second_misfit / out.misfit
+        << ")";
   else if (out.evidence_nats < options.min_evidence_nats)
     why << "too little evidence: " << std::lround(out.evidence_nats) << " nats over "
         << std::lround(stats.independent_inliers) << " independent DEM samples (near terrain or a zoomed-in view)";
@@ -358,6 +368,16 @@ Registration Register(const Skyline& skyline, const HorizonProfile& horizon, con
       if (std::isfinite(skyline.y[j])) window.push_back(skyline.y[j]);
     std::nth_element(window.begin(), window.begin() + window.size() / 2, window.end());
     up[i] = -window[window.size() / 2];
+  }
+  // Short gaps (columns dropped for low contrast, in haze or JPEG noise)
+  // bridged by straight lines: they would split the skyline into runs too
+  // short to hold a peak or dip, and a line adds none.
+  const int max_gap = std::max(4, static_cast<int>(std::lround(kMaxBridgedGap * width)));
+  for (int i = 0, last = -1; i < width; ++i) {
+    if (!std::isfinite(up[i])) continue;
+    if (last >= 0 && i - last > 1 && i - last - 1 <= max_gap)
+      for (int j = last + 1; j < i; ++j) up[j] = up[last] + (up[i] - up[last]) * (j - last) / (i - last);
+    last = i;
   }
   ExtremaOptions eo;
   eo.min_prominence = options.min_image_prominence_px * px_scale;
@@ -533,14 +553,19 @@ Registration Register(const Skyline& skyline, const HorizonProfile& horizon, con
   // solution: one whose predicted skyline differs from the best's (a
   // half-converged copy of the best, a few tenths of a degree and percent
   // of focal length away, predicts the same skyline and is no alternative).
-  // Compared on the misfit alone.
+  // Compared on the cost, as the best is chosen: a pose that lets every
+  // column fit a wide band (a zoomed-in view, near terrain) pays for its
+  // tolerance and is no rival for a close fit (on the misfit alone such a
+  // pose beat the correct one on three of the real photos' traced skylines).
   std::vector<size_t> order;
   const Candidate* second_candidate = nullptr;
+  const Candidate* closest_rival = nullptr;  // the distinct alternative of least misfit
   auto rank = [&] {
     order.resize(refined.size());
     std::iota(order.begin(), order.end(), 0);
     std::sort(order.begin(), order.end(), [&](size_t x, size_t y) { return refined[x].cost < refined[y].cost; });
     second_candidate = nullptr;
+    closest_rival = nullptr;
     if (refined.empty()) return;
     const Candidate& b = refined[order[0]];
     for (size_t i = 1; i < order.size(); ++i) {
@@ -548,7 +573,8 @@ Registration Register(const Skyline& skyline, const HorizonProfile& horizon, con
       if (SamePose(c.pose, b.pose, width) ||
           (NearPose(c.pose, b.pose, width) && scorer.Agreement(c.pose, b.pose, quick, tau) >= 0.5))
         continue;
-      if (!second_candidate || c.misfit < second_candidate->misfit) second_candidate = &c;
+      if (!second_candidate || c.cost < second_candidate->cost) second_candidate = &c;
+      if (!closest_rival || c.misfit < closest_rival->misfit) closest_rival = &c;
     }
   };
   extend_pool(options.candidates);
@@ -578,15 +604,13 @@ Registration Register(const Skyline& skyline, const HorizonProfile& horizon, con
   const HorizonLookup adapted_lookup(horizon, adapted);
   const Scorer adapted_scorer(adapted_lookup, adapted, SigmaPx(options, width), skyline.height, options.outlier_share);
   out.dem.flattening_scale = scale;
-  const double best_misfit = adapted_scorer.Misfit(best.pose, all);
-  double second = INFINITY;
+  const double best_cost = adapted_scorer.Cost(best.pose, all);
   if (second_candidate) {
-    second = adapted_scorer.Misfit(second_candidate->pose, all);
     out.second_cost = adapted_scorer.Cost(second_candidate->pose, all);
     out.second_inlier_fraction = adapted_scorer.InlierShare(second_candidate->pose, all);
+    out.second_misfit = adapted_scorer.Misfit(closest_rival->pose, all);
   }
-  out.ambiguity_ratio = second / std::max(best_misfit, 1e-9);
-  out.second_misfit = second;
+  out.ambiguity_ratio = second_candidate ? out.second_cost / std::max(best_cost, 1e-9) : INFINITY;
   out.ex_px = corrections[order[0]].ex_px;
   out.ey_px = corrections[order[0]].ey_px;
   FinishRegistration(adapted_scorer, frame, all, best.pose, width, step, px_scale, false, options, {}, out);

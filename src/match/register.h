@@ -40,6 +40,11 @@ struct SensorPrior {
 struct DemErrorModel {
   double flattening_spacings = 0.15;  // mean height deficit of the horizon terrain, in post spacings, >= 0
   double flattening_floor_deg = 0.03; // mean deficit however fine the DEM (snow, sub-grid relief), degrees, >= 0
+  // The slope (HorizonProfile::relief_slope) at which the deficit is
+  // flattening_spacings; it grows with the slope (a sharp crest between
+  // posts stands above them by up to slope x spacing / 2, a dome's by
+  // little), within [1/4, 4] times. > 0.
+  double typical_slope = 0.4;
   double position_sigma_m = 1.0;       // horizontal position of the observer, 1 sigma, metres, >= 0
   double height_sigma_m = 1.0;         // eye height, 1 sigma, metres, >= 0
   void Check() const;                  // Throws InvalidArgument naming the field.
@@ -67,7 +72,7 @@ struct RegistrationOptions {
   int quick_columns = 120;                   // Skyline columns for refining candidates, >= 8.
   int refine_columns = 300;                  // Skyline columns in the final least squares, >= 8.
   int candidates = 8;                        // Distinct best hypotheses given the paper's linear corrections, >= 2.
-  int refined_candidates = 4;                // ... of which the best this many get the least squares, >= 2.
+  int refined_candidates = 8;                // ... of which the best this many get the least squares, >= 2.
   // Pixel noise of the skyline (3 sigma), pixels per 1000 px of image width
   // (ToleranceScale): the inlier gate is 3 sigma of each column's noise,
   // widened by the DEM error model.
@@ -82,7 +87,13 @@ struct RegistrationOptions {
                                            // and a coarse DEM count little, Registration::informative_columns)
   double min_inlier_fraction = 0.65;       // of the informative columns inside the gate at the refined pose
   double max_rms_px = 1.4;                 // RMS of the inliers' residuals beyond the DEM model (per 1000 px of width)
-  double min_ambiguity_ratio = 1.4;        // the best other solution's misfit over the best's
+  double min_ambiguity_ratio = 1.4;        // the best other solution's cost over the best's
+  // The least misfit of a distinct alternative over the best's, below which
+  // the best is refused: a rival that fits the skyline more closely but pays
+  // for a wider tolerance (a zoomed-in view) is not outweighed by the cost
+  // alone. Correct poses on the real photos: >= 0.885; a wrong position
+  // (zion_01 from 2 km): 0.69.
+  double min_misfit_ratio = 0.8;
   // Log-likelihood (nats) by which the best pose beats the best other
   // solution, over the independent DEM samples behind its inliers
   // (Registration::evidence_nats): many columns on a few DEM cells (near
@@ -129,7 +140,7 @@ struct Registration {
   double ex_px = NAN, ey_px = NAN;      // paper eq. (13), (14): RMS horizontal and vertical differences
   double ambiguity_ratio = 0.0;         // cost of the best distinct alternative over the best's (inf if none)
   double second_inlier_fraction = 0.0;  // share of the columns that alternative fits
-  double misfit = NAN, second_misfit = NAN;  // mean truncated chi^2 of the best and that alternative
+  double misfit = NAN, second_misfit = NAN;  // mean truncated chi^2 of the best and of the closest distinct alternative
   double second_cost = NAN;                  // that alternative's mean cost (chi^2 and tolerance width)
   double informative_columns = 0.0;  // columns whose tolerance lets them inform (near terrain counts little)
   double independent_inliers = 0.0;  // independent DEM samples behind the inliers (FitStats)

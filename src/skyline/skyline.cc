@@ -31,7 +31,8 @@ constexpr float kEdgeAboveWeight = 0.5f;  // DP cost per delta E of sharp steps 
 constexpr float kEdgeNoise = 4.0f;        // delta E of a step that is still noise or a soft cloud edge
 constexpr float kEdgeCap = 12.0f;         // delta E above which a step counts as fully an edge
 constexpr float kSnowEdgeBoost = 4.0f;    // extra weight of a sharp step into white (snow) left above the boundary
-constexpr float kDeepBlueB = -25.0f;      // b* below which a pixel is saturated blue: sky, never terrain
+constexpr float kDeepBlueB = -25.0f;      // b* below which a pixel is saturated blue: sky, never terrain ...
+constexpr float kNormalCastB = -15.0f;    // ... lowered by the image's blue cast beyond this (median b* of its bottom third)
 constexpr int kPersistentRows = 4;            // rows averaged on each side of a persistent step
 constexpr float kTopmostMinStep = 1.0f;       // delta E: a persistent step is clear from this ...
 constexpr float kTopmostNoiseFactor = 5.0f;   // ... or from this many times the sky's noise
@@ -71,7 +72,7 @@ void Halve(const LabPlanes& lab, LabPlanes& out) {
 
 // Pass 1: sky likeness relative to the image's top band (assumed sky).
 // Planes transposed (one row per image column).
-HR_VECTOR_CLONES void SkyScoreFromTopBand(const LabPlanes& lab, cv::Mat& s) {
+HR_VECTOR_CLONES void SkyScoreFromTopBand(const LabPlanes& lab, float deep_blue_b, cv::Mat& s) {
   const int w = lab.Rows(), h = lab.Cols();
   const int band = std::max(2, h / 30);
   std::vector<float> ls;
@@ -99,7 +100,7 @@ HR_VECTOR_CLONES void SkyScoreFromTopBand(const LabPlanes& lab, cv::Mat& s) {
     for (int r = 0; r < h; ++r) {
       const float warm = Logistic((b[r] - 6.0f) / 2.0f) + Logistic((std::abs(a[r]) - 10.0f) / 2.0f);
       not_warm[r] = warm < 1.0f ? 1.0f - warm : 0.0f;
-      deep_blue[r] = Logistic((kDeepBlueB - b[r]) * (1.0f / 3));
+      deep_blue[r] = Logistic((deep_blue_b - b[r]) * (1.0f / 3));
     }
     auto exp_of_ref = [](float ref) { return ExpApprox((ref - kDarkDrop) * (1.0f / kDarkScale)); };
     for (int r = 0; r < h; ++r) {  // a loop apart: GCC vectorises at most 10 alias tests
@@ -166,7 +167,7 @@ HR_VECTOR_CLONES void SkyScoreFromHistograms(const LabPlanes& lab, const std::ve
 
 // Colour step between rows y-1 and y from the mean colours of rows i0, i1
 // above and i2, i3 below (see BoundarySteps).
-inline float StepAt(const float* l, const float* a, const float* b, int i0, int i1, int i2, int i3) {
+inline float StepAt(const float* l, const float* a, const float* b, int i0, int i1, int i2, int i3, float deep_blue_b) {
   const float dl = 0.5f * (l[i2] + l[i3] - l[i0] - l[i1]), da = 0.5f * (a[i2] + a[i3] - a[i0] - a[i1]);
   const float below_b = 0.5f * (b[i2] + b[i3]), db = below_b - 0.5f * (b[i0] + b[i1]);
   // Any clear edge may be the skyline, not only the strongest: the reward
@@ -175,7 +176,7 @@ inline float StepAt(const float* l, const float* a, const float* b, int i0, int 
   // A step down into saturated blue is within the sky (a cloud's base, the
   // renderer's or a real sky's deep blue near the horizon): terrain below
   // the skyline is never that blue, even far and hazy.
-  const float into_deep_blue = Logistic((kDeepBlueB - below_b) * (1.0f / 3));
+  const float into_deep_blue = Logistic((deep_blue_b - below_b) * (1.0f / 3));
   return (dl > 2.0f ? 0.5f * mag : mag) * (1.0f - into_deep_blue);
 }
 
@@ -183,7 +184,7 @@ inline float StepAt(const float* l, const float* a, const float* b, int i0, int 
 // (y, y+1) and (y-2, y-1), for y in [0, h]. Steps where the upper side is
 // darker count half (sky is usually the brighter side). One row per image
 // column.
-HR_VECTOR_CLONES void BoundarySteps(const LabPlanes& lab, cv::Mat& e) {
+HR_VECTOR_CLONES void BoundarySteps(const LabPlanes& lab, float deep_blue_b, cv::Mat& e) {
   const int w = lab.Rows(), h = lab.Cols();
   e.create(w, h + 1, CV_32F);
   for (int c = 0; c < w; ++c) {
@@ -192,9 +193,11 @@ HR_VECTOR_CLONES void BoundarySteps(const LabPlanes& lab, cv::Mat& e) {
     const float* b = lab.b.ptr<float>(c);
     float* out = e.ptr<float>(c);
     out[0] = out[h] = 0.0f;
-    auto clamped = [&](int y) { out[y] = StepAt(l, a, b, std::max(y - 2, 0), y - 1, y, std::min(y + 1, h - 1)); };
+    auto clamped = [&](int y) {
+      out[y] = StepAt(l, a, b, std::max(y - 2, 0), y - 1, y, std::min(y + 1, h - 1), deep_blue_b);
+    };
     if (h > 1) clamped(1);
-    for (int y = 2; y < h - 1; ++y) out[y] = StepAt(l, a, b, y - 2, y - 1, y, y + 1);
+    for (int y = 2; y < h - 1; ++y) out[y] = StepAt(l, a, b, y - 2, y - 1, y, y + 1, deep_blue_b);
     if (h > 2) clamped(h - 1);
   }
 }
@@ -388,7 +391,7 @@ std::vector<int> SolveUnary(const cv::Mat& unary, double smoothness, double slop
 // gradient is no step), the smaller of the two (next to another edge the
 // trend is meaningless). A step down into saturated blue is within the sky
 // (a deep sky below a pale one, a cloud's base), so it counts nothing.
-HR_VECTOR_CLONES void PersistentSteps(const LabPlanes& lab, int k, cv::Mat& out) {
+HR_VECTOR_CLONES void PersistentSteps(const LabPlanes& lab, int k, float deep_blue_b, cv::Mat& out) {
   const int w = lab.Rows(), h = lab.Cols();
   out.create(w, h + 1, CV_32F);
   out.setTo(0.0f);
@@ -422,11 +425,11 @@ HR_VECTOR_CLONES void PersistentSteps(const LabPlanes& lab, int k, cv::Mat& out)
     const int last = end - 2;
     for (int y = k; y <= std::min(end, last); ++y) {
       const float below_b = (cb[y + 2 + k] - cb[y + 2]) * inv_k;
-      o[y] = std::min(plain[y], trend[y]) * (1.0f - Logistic((kDeepBlueB - below_b) * (1.0f / 3)));
+      o[y] = std::min(plain[y], trend[y]) * (1.0f - Logistic((deep_blue_b - below_b) * (1.0f / 3)));
     }
     for (int y = std::max(k, last + 1); y <= end; ++y) {
       const float below_b = (cb[h] - cb[h - k]) * inv_k;
-      o[y] = std::min(plain[y], trend[y]) * (1.0f - Logistic((kDeepBlueB - below_b) * (1.0f / 3)));
+      o[y] = std::min(plain[y], trend[y]) * (1.0f - Logistic((deep_blue_b - below_b) * (1.0f / 3)));
     }
   }
 }
@@ -469,7 +472,7 @@ std::vector<int> TopmostEdge(const cv::Mat& steps, double smoothness, double slo
 // from the sky model by more than kSkyModelVeto sigmas but less than
 // kSubtleDeltaE, unless saturated blue.
 HR_VECTOR_CLONES void VetoSubtleDepartures(const cv::Mat& deviation, const LabPlanes& lab, float sky_scale,
-                                           cv::Mat& sky) {
+                                           float deep_blue_b, cv::Mat& sky) {
   const int w = sky.rows, h = sky.cols;
   for (int c = 0; c < w; ++c) {
     const float* dev = deviation.ptr<float>(c);
@@ -478,7 +481,7 @@ HR_VECTOR_CLONES void VetoSubtleDepartures(const cv::Mat& deviation, const LabPl
     for (int r = 0; r < h; ++r) {
       const float off = Logistic((dev[r] - kSkyModelVeto) * 2.0f) *
                         Logistic((kSubtleDeltaE - dev[r] * sky_scale) * (1.0f / 1.5f)) *
-                        (1.0f - Logistic((kDeepBlueB - b[r]) * (1.0f / 3)));
+                        (1.0f - Logistic((deep_blue_b - b[r]) * (1.0f / 3)));
       s[r] *= 1.0f - off;
     }
   }
@@ -521,6 +524,22 @@ struct Workspace {
   std::vector<float> acc;
   RefineStrips refine;
 };
+
+// The b* below which a pixel is saturated blue, sky and never terrain: at
+// dawn, dusk or under a blue white balance the whole frame is blue, the
+// ground too (its median b* in the bottom third, usually terrain, is then
+// -15 to -30, against -8 to +25 otherwise: glacier ice is bluish), and a
+// far ridge can be bluer than the sky over it. The threshold moves down by
+// the cast beyond the usual.
+float DeepBlueB(const LabPlanes& lab) {
+  const int w = lab.Rows(), h = lab.Cols();
+  std::vector<float> bs;
+  bs.reserve(static_cast<size_t>(w) * (h - 2 * h / 3));
+  for (int c = 0; c < w; ++c) bs.insert(bs.end(), lab.b.ptr<float>(c) + 2 * h / 3, lab.b.ptr<float>(c) + h);
+  if (bs.empty()) return kDeepBlueB;
+  std::nth_element(bs.begin(), bs.begin() + bs.size() / 2, bs.end());
+  return kDeepBlueB + std::min(0.0f, bs[bs.size() / 2] - kNormalCastB);
+}
 
 // The image as 8-bit BGR (grey and BGRA converted, BGR shared).
 cv::Mat ToBgr(const cv::Mat& image) {
@@ -610,14 +629,15 @@ Skyline ExtractSkyline(const cv::Mat& image, const SkylineOptions& options) {
 
   const double roll_rad = DegToRad(options.roll_hint_deg.value_or(0.0));
   const double slope = -std::tan(roll_rad);  // positive roll: the skyline rises to the right
-  BoundarySteps(work_t, ws.steps);
+  const float deep_blue_b = DeepBlueB(work_t);
+  BoundarySteps(work_t, deep_blue_b, ws.steps);
   // Pass 1 only gives the first boundary that pass 2 learns the colours of
   // sky and ground from: at half the work size (a quarter of the time).
   std::vector<int> boundary(ww);
   {
     Halve(work_t, ws.lab_h);
-    BoundarySteps(ws.lab_h, ws.steps_h);
-    SkyScoreFromTopBand(ws.lab_h, ws.sky_h);
+    BoundarySteps(ws.lab_h, deep_blue_b, ws.steps_h);
+    SkyScoreFromTopBand(ws.lab_h, deep_blue_b, ws.sky_h);
     EdgeAbovePenalty(ws.steps_h, ws.sky_h, ws.lab_h, ws.pen_h);
     const std::vector<int> half =
         SolveBoundary(ws.sky_h, ws.steps_h, ws.pen_h, options.smoothness, options.edge_weight, slope, ws.acc);
@@ -628,7 +648,7 @@ Skyline ExtractSkyline(const cv::Mat& image, const SkylineOptions& options) {
   // topmost clear edge (pass 1 takes white snow for sky; the topmost edge
   // stops at it), vetoes sky where a pixel departs from the sky colour
   // expected at its place.
-  PersistentSteps(work_t, kPersistentRows, ws.persistent);
+  PersistentSteps(work_t, kPersistentRows, deep_blue_b, ws.persistent);
   float sky_noise = 0.0f;  // median persistent step in the top of the image, delta E
   const std::vector<int> topmost = TopmostEdge(ws.persistent, options.smoothness, slope, ws.unary, ws.acc, sky_noise);
   std::vector<int> fit_top(ww);
@@ -657,7 +677,7 @@ Skyline ExtractSkyline(const cv::Mat& image, const SkylineOptions& options) {
   // bins) mark terrain: a hazy far ridge a few delta E off a pale sky.
   // Larger departures (clouds, snow, rock) are left to the histograms and
   // their context; saturated blue (a deep sky band) is always sky.
-  VetoSubtleDepartures(ws.deviation, work_t, sky_model.scale(), ws.sky);
+  VetoSubtleDepartures(ws.deviation, work_t, sky_model.scale(), deep_blue_b, ws.sky);
   EdgeAbovePenalty(ws.steps, ws.sky, work_t, ws.pen);
   boundary = SolveBoundary(ws.sky, ws.steps, ws.pen, options.smoothness, options.edge_weight, slope, ws.acc);
 
