@@ -101,6 +101,16 @@ TEST(ComputeHorizon, SingleConePeakAppearsAtItsAzimuth) {
     EXPECT_NEAR(p.lat_deg[top], peak_lat, 1e-7);
     EXPECT_NEAR(p.lon_deg[top], peak_lon, 1e-7);
     EXPECT_NEAR(p.height_m[top], 2300.0, 1e-3);
+    // The cone's flanks fall 1 m in 3 from the summit; the plain around it
+    // is flat (the relief slope sets how much the grid cuts off a peak).
+    ASSERT_EQ(p.relief_slope.size(), p.elevation_deg.size());
+    EXPECT_NEAR(p.relief_slope[top], 2000.0 / 6000.0, 0.1);
+    std::vector<double> slopes;
+    for (double v : p.relief_slope)
+      if (std::isfinite(v)) slopes.push_back(v);
+    ASSERT_GT(slopes.size(), 1000u);
+    std::nth_element(slopes.begin(), slopes.begin() + slopes.size() / 2, slopes.end());
+    EXPECT_LT(slopes[slopes.size() / 2], 0.01);
   }
 }
 

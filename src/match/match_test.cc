@@ -28,6 +28,14 @@ TEST(RegistrationOptions, CheckNamesTheField) {
   }
 }
 
+TEST(RegistrationOptions, MisfitRatioIsAShareOfTheBestMisfit) {
+  RegistrationOptions o;
+  o.min_misfit_ratio = 1.5;
+  EXPECT_THROW(o.Check(), InvalidArgument);
+  o.min_misfit_ratio = -0.1;
+  EXPECT_THROW(o.Check(), InvalidArgument);
+}
+
 TEST(FindExtrema, PeakAndDipWithTheirProminence) {
   //                          0  1  2  3  4  5  6  7  8
   const std::vector<double> v{0, 1, 5, 1, 2, 0, 3, 2, 2};
@@ -260,6 +268,24 @@ TEST(Register, SameResultForAnyThreadCount) {
   RegistrationOptions none;
   none.num_threads = 0;
   EXPECT_THROW(none.Check(), InvalidArgument);
+}
+
+// Haze drops columns of low contrast: short gaps (up to 3% of the width)
+// are bridged for finding peaks and dips, so a skyline cut into 20-column
+// runs still registers, and the gaps stay gaps in the fit.
+TEST(Register, ShortGapsInTheSkylineDoNotHideItsPeaks) {
+  const HorizonProfile p = SyntheticHorizon(0.25);
+  const CameraPose pose{300.2, -2.0, 3.0};
+  const auto k = CameraIntrinsics::FromHfov(1024, 683, 30.0);
+  Skyline s = SkylineOf(p, pose, k);
+  for (int c = 0; c < s.width; ++c)
+    if (c % 45 >= 20) s.y[c] = NAN, s.confidence[c] = 0.0;
+  const Registration r = Register(s, p, {});
+  ASSERT_TRUE(r.registered) << r.message;
+  EXPECT_NEAR(AngDiffDeg(r.pose.azimuth_deg, pose.azimuth_deg), 0.0, 0.02);
+  EXPECT_NEAR(r.pose.pitch_deg, pose.pitch_deg, 0.02);
+  // The best pose fits more closely than any distinct alternative.
+  EXPECT_GE(r.second_misfit, RegistrationOptions{}.min_misfit_ratio * r.misfit);
 }
 
 TEST(Register, FlatOrRepeatingHorizonGivesNoMatch) {
