@@ -270,10 +270,13 @@ std::optional<Registration> RecheckWithGuidedSkyline(const cv::Mat& image, const
   // The columns to re-read inflate the best pose's misfit, so its ambiguity
   // ratio reads low; the search on the re-read skyline checks it again.
   const double min_first_ambiguity = 0.85 * options.min_ambiguity_ratio;
+  // ... and its residual, which the same columns inflate, at most 20% over
+  // the gate.
+  const double max_first_rms = 1.2 * options.max_rms_px;
   const int w = skyline.width, h = skyline.height;
   const double px_scale = ToleranceScale(w), tau = options.inlier_px * px_scale;
   if (first.registered || !(first.focal_px > 0.0) || first.inlier_fraction < min_first_inliers ||
-      !(first.model_rms_px <= options.max_rms_px * px_scale) || first.ambiguity_ratio < min_first_ambiguity)
+      !(first.model_rms_px <= max_first_rms * px_scale) || first.ambiguity_ratio < min_first_ambiguity)
     return std::nullopt;
   const cv::Mat bgr = AsBgr(image);
   if (bgr.type() != CV_8UC3 || bgr.cols != w || bgr.rows != h || static_cast<int>(skyline.y.size()) != w)
