@@ -405,9 +405,12 @@ Registration Register(const Skyline& skyline, const HorizonProfile& horizon, con
   const Scorer scorer(lookup, options.dem_error, SigmaPx(options, width), skyline.height, options.outlier_share);
   const std::vector<Column> coarse = Subsample(all, options.coarse_columns);
   // Focal lengths searched: the opening-angle range, or the known lens' with
-  // room for the extrema's position errors.
-  const double fmin = frame.known() ? frame.KnownFocalPx() / 1.03 : FocalFromHfovPx(options.max_hfov_deg, width);
-  const double fmax = frame.known() ? frame.KnownFocalPx() * 1.03 : FocalFromHfovPx(options.min_hfov_deg, width);
+  // room for the extrema's position errors (a DEM peak a few tenths of a
+  // degree from the image's, over a pair W/20 apart, ~2.5 deg at a 50-deg
+  // opening angle: +-3% lost the right pair on AK10_20090803_195410, +-10%
+  // keeps it; the hypothesis then takes the known focal length).
+  const double fmin = frame.known() ? frame.KnownFocalPx() / 1.10 : FocalFromHfovPx(options.max_hfov_deg, width);
+  const double fmax = frame.known() ? frame.KnownFocalPx() * 1.10 : FocalFromHfovPx(options.min_hfov_deg, width);
   const double step = horizon.azimuth_step_deg;
   auto dem_point = [&](const Extremum& e) { return HorizonPoint{e.position * step, e.value}; };
   std::vector<Eigen::Vector3d> dem_dirs;
