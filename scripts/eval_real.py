@@ -14,6 +14,8 @@ Modes (each a per-photo table and a summary):
   skyline   skyline accuracy against the hand-traced horizon (traced columns)
   wrong     register from positions 2-10 km away and against another region's
             DEM: every one must answer no_match (a registration there is false)
+  wrong-camera  the same probes with --camera from the truth (a known lens
+            narrows the search to other pairs of peaks)
 Usage: eval_real.py HORIZONREG SHARED_DIR [--modes plain,camera,...] [--check]
        [--overlay-dir DIR] [--only NAME,...] [--jobs N]
 With --check, exits 1 when a figure misses the floor it is checked against
@@ -22,7 +24,7 @@ targets) or when any registration is false.
 """
 import concurrent.futures, json, math, os, statistics, subprocess, sys, tempfile
 
-ALL_MODES = ["plain", "camera", "initial", "traced", "traced-pinhole", "skyline", "wrong"]
+ALL_MODES = ["plain", "camera", "initial", "traced", "traced-pinhole", "skyline", "wrong", "wrong-camera"]
 # Positions 2-10 km away (bearing deg, distance m) and other regions' DEMs
 # (with a position inside each), for the false-registration probes.
 WRONG_OFFSETS = [(0, 2000), (120, 3000), (240, 5000), (60, 7000), (300, 10000)]
@@ -163,6 +165,9 @@ def main():
             floors[k] = float(v)
     args = [a for i, a in enumerate(argv) if not a.startswith("--") and
             (i == 0 or argv[i - 1] not in ("--modes", "--only", "--overlay-dir", "--jobs", "--floors"))]
+    if len(args) != 2 or "--help" in argv or "-h" in argv:
+        print(__doc__)
+        return 0 if ("--help" in argv or "-h" in argv) else 2
     binary, shared = args[0], args[1]
     real = os.path.join(shared, "real")
     if not os.path.isdir(real):
@@ -246,7 +251,10 @@ def main():
         if check and w < floors["skyline"]:
             print("FAIL: skyline accuracy misses its floor")
             failed = True
-    if "wrong" in modes:
+    for mode in ("wrong", "wrong-camera"):
+        if mode not in modes:
+            continue
+        with_camera = mode == "wrong-camera"
         probes = []
         for p in photos:
             for bearing, dist in WRONG_OFFSETS:
@@ -258,9 +266,15 @@ def main():
 
         def probe(x):
             (name, t, d), label, dem, lat, lon, alt = x
-            return name, label, register(binary, shared, d, name, t, [], dem=dem, lat=lat, lon=lon, alt=alt)
+            extra = []
+            if with_camera:
+                path = os.path.join(tmpdir, name + ".camera.json")
+                camera_file(t, path)
+                extra = ["--camera", path]
+            return name, label, register(binary, shared, d, name, t, extra, dem=dem, lat=lat, lon=lon, alt=alt)
         out = list(pool.map(probe, probes))
-        print("\n== wrong position (2-10 km away) or another region's DEM: all must be no_match ==")
+        print(f"\n== wrong position (2-10 km away) or another region's DEM{' with --camera' if with_camera else ''}: "
+              "all must be no_match ==")
         bad = [(n, l, r.get("status")) for n, l, r in out if r.get("status") == "registered"]
         errs = [(n, l, r.get("message")) for n, l, r in out if r.get("status") == "error"]
         for n, l, s in bad:
