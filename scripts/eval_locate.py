@@ -42,6 +42,9 @@ def main():
     opt = lambda k, d=None: argv[argv.index(k) + 1] if k in argv else d
     args = [a for i, a in enumerate(argv) if not a.startswith("--") and
             (i == 0 or argv[i - 1] not in ("--radius", "--only", "--min-rate", "--max-seconds"))]
+    if len(args) != 2 or "--help" in sys.argv or "-h" in sys.argv:
+        print(__doc__)
+        return 0 if ("--help" in sys.argv or "-h" in sys.argv) else 2
     binary, shared = args[0], args[1]
     radius = float(opt("--radius", "10000"))
     only = set(opt("--only").split(",")) if opt("--only") else None

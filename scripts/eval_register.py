@@ -48,6 +48,9 @@ def main():
     min_rate = float(argv[argv.index("--min-rate") + 1]) if "--min-rate" in argv else None
     args = [a for i, a in enumerate(argv) if not a.startswith("--") and
             (i == 0 or argv[i - 1] not in ("--overlay-dir", "--only", "--min-rate"))]
+    if len(args) != 2 or "--help" in sys.argv or "-h" in sys.argv:
+        print(__doc__)
+        return 0 if ("--help" in sys.argv or "-h" in sys.argv) else 2
     binary, shared = args[0], args[1]
     scenes = os.path.join(shared, "scenes", "dev")
     if not os.path.isdir(scenes):

@@ -19,6 +19,9 @@ def main():
         debug_dir = sys.argv[sys.argv.index("--debug-dir") + 1]
         args.remove(debug_dir)
         os.makedirs(debug_dir, exist_ok=True)
+    if len(args) != 2 or "--help" in sys.argv or "-h" in sys.argv:
+        print(__doc__)
+        return 0 if ("--help" in sys.argv or "-h" in sys.argv) else 2
     binary, shared = args[0], args[1]
     scenes_dir = os.path.join(shared, "scenes", "dev")
     if not os.path.isdir(scenes_dir):

@@ -28,6 +28,9 @@ def main():
     check = "--check" in argv
     video = argv[argv.index("--video") + 1] if "--video" in argv else None
     args = [a for i, a in enumerate(argv) if not a.startswith("--") and (i == 0 or argv[i - 1] != "--video")]
+    if len(args) != 2 or "--help" in sys.argv or "-h" in sys.argv:
+        print(__doc__)
+        return 0 if ("--help" in sys.argv or "-h" in sys.argv) else 2
     binary, shared = args[0], args[1]
     seq = os.path.join(shared, "scenes", "seq")
     if not os.path.isdir(seq):
