@@ -83,6 +83,8 @@ void PhotoOptions::Check() const {
     throw InvalidArgument("hfov_range_deg: need 0 < MIN <= MAX < 170");
   if (position_sigma_m && !(*position_sigma_m >= 0 && *position_sigma_m <= 100'000))
     ThrowField("position_sigma_m", *position_sigma_m, "in [0, 100000] metres");
+  if (refine_position && position_sigma_m && !(*position_sigma_m > 0.0))
+    ThrowField("position_sigma_m", *position_sigma_m, "> 0 with refine_position");
   if (refine_position) refine_position->Check();
   registration.Check();
 }

@@ -140,7 +140,6 @@ py::object PyRegister(const py::object& image, const PySite& site, std::optional
   }
   po.position_sigma_m = position_sigma;
   if (refine_position) {
-    if (position_sigma && !(*position_sigma > 0.0)) ThrowField("position_sigma", *position_sigma, "> 0 with refine_position");
     po.refine_position = DefaultPositionOptions("arguments", false, position_sigma);
   }
   po.Check();
