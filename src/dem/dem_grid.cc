@@ -50,11 +50,16 @@ std::optional<std::pair<double, double>> DemGrid::PixelOf(double query_lat_deg, 
 }
 
 std::optional<double> DemGrid::HeightAt(double query_lat_deg, double query_lon_deg) const {
-  auto px = PixelOf(query_lat_deg, query_lon_deg);
-  if (!px) return std::nullopt;
-  const int c = std::min(static_cast<int>(px->first), width - 2);
-  const int r = std::min(static_cast<int>(px->second), height - 2);
-  const double fx = px->first - c, fy = px->second - r;
+  const auto px = PixelOf(query_lat_deg, query_lon_deg);
+  return px ? HeightAtPixel(px->first, px->second) : std::nullopt;
+}
+
+std::optional<double> DemGrid::HeightAtPixel(double col, double row) const {
+  if (width < 2 || height < 2 || !(col >= 0.0 && row >= 0.0 && col <= width - 1.0 && row <= height - 1.0))
+    return std::nullopt;
+  const int c = std::min(static_cast<int>(col), width - 2);
+  const int r = std::min(static_cast<int>(row), height - 2);
+  const double fx = col - c, fy = row - r;
   const double h =
       (1 - fy) * ((1 - fx) * At(c, r) + fx * At(c + 1, r)) + fy * ((1 - fx) * At(c, r + 1) + fx * At(c + 1, r + 1));
   if (!std::isfinite(h)) return std::nullopt;

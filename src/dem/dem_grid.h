@@ -71,6 +71,8 @@ struct DemGrid {
   // Bilinear terrain height at a WGS84 position; nullopt outside the grid or
   // where a surrounding post has no data.
   std::optional<double> HeightAt(double query_lat_deg, double query_lon_deg) const;
+  // The same at a fractional post (col, row), as PixelOf gives it.
+  std::optional<double> HeightAtPixel(double col, double row) const;
   // Post spacing in metres along a row and along a column, near the centre.
   double SpacingM() const;
 };

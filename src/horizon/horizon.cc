@@ -275,14 +275,6 @@ HorizonProfile ComputeHorizon(const TerrainWindow& terrain, const GeodeticPoint&
   std::vector<double> spacing;
   for (const DemGrid& g : terrain.grids) spacing.push_back(g.width >= 2 && g.height >= 2 ? g.SpacingM() : NAN);
   size_t grid = 0;  // the horizon's neighbouring bins mostly lie in the same grid: try the last one first
-  // Bilinear height at a fractional post (col, row); NaN outside or on a void.
-  auto bilinear = [](const DemGrid& g, double col, double row) {
-    if (!(col >= 0.0 && row >= 0.0 && col <= g.width - 1.0 && row <= g.height - 1.0)) return static_cast<double>(NAN);
-    const int c = std::min(static_cast<int>(col), g.width - 2), r = std::min(static_cast<int>(row), g.height - 2);
-    const double fx = col - c, fy = row - r;
-    return (1 - fy) * ((1 - fx) * g.At(c, r) + fx * g.At(c + 1, r)) +
-           fy * ((1 - fx) * g.At(c, r + 1) + fx * g.At(c + 1, r + 1));
-  };
   // The grid holding (lat, lon) with data, and the fractional post there.
   struct GridPoint {
     size_t grid;
@@ -292,7 +284,7 @@ HorizonProfile ComputeHorizon(const TerrainWindow& terrain, const GeodeticPoint&
     for (size_t k = 0; k < terrain.grids.size(); ++k) {
       const size_t g = (grid + k) % terrain.grids.size();
       const auto px = terrain.grids[g].PixelOf(lat, lon);
-      if (px && std::isfinite(bilinear(terrain.grids[g], px->first, px->second))) {
+      if (px && terrain.grids[g].HeightAtPixel(px->first, px->second)) {
         grid = g;
         return GridPoint{g, px->first, px->second};
       }
@@ -303,13 +295,13 @@ HorizonProfile ComputeHorizon(const TerrainWindow& terrain, const GeodeticPoint&
   // directions of the grid (along rows, columns and diagonals), rise over run.
   auto relief_at = [&](const GridPoint& p, double s) {
     const DemGrid& g = terrain.grids[p.grid];
-    const double h0 = bilinear(g, p.col, p.row);
-    if (!(s > 0.0)) return static_cast<double>(NAN);
+    const std::optional<double> h0 = g.HeightAtPixel(p.col, p.row);
+    if (!h0 || !(s > 0.0)) return static_cast<double>(NAN);
     double steepest = 0.0;
     for (int dy = -1; dy <= 1; ++dy)
       for (int dx = -1; dx <= 1; ++dx) {
-        const double h = bilinear(g, p.col + dx, p.row + dy);
-        if ((dx || dy) && std::isfinite(h)) steepest = std::max(steepest, (h0 - h) / (s * std::hypot(dx, dy)));
+        const std::optional<double> h = g.HeightAtPixel(p.col + dx, p.row + dy);
+        if ((dx || dy) && h) steepest = std::max(steepest, (*h0 - *h) / (s * std::hypot(dx, dy)));
       }
     return steepest;
   };
