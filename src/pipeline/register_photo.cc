@@ -269,7 +269,7 @@ std::optional<Registration> RecheckWithGuidedSkyline(const cv::Mat& image, const
   const double min_first_inliers = options.min_inlier_fraction - 0.2;
   constexpr double kMinStep = 15.0;  // BGR distance of the 3-row means across the step (sky noise ~3)
   constexpr double kMaxPoseMoveDeg = 0.2;
-  // The columns to re-read inflate the best pose's misfit, so its ambiguity
+  // The columns to re-read inflate the best pose's cost, so its ambiguity
   // ratio reads low; the search on the re-read skyline checks it again.
   const double min_first_ambiguity = 0.85 * options.min_ambiguity_ratio;
   // ... and its residual, which the same columns inflate, at most 20% over

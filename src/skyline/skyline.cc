@@ -42,6 +42,10 @@ constexpr float kSkyModelClean = 2.0f;        // sky-model deviation (robust sig
 constexpr float kSubtleDeltaE = 12.0f;        // ... up to this colour distance (beyond: the histograms decide)
 constexpr double kFogSpreadRows = 2.4;  // median contrast / largest one-row step above which a faint boundary is a fade
 
+// How surely b* marks saturated blue (sky, never terrain) below the
+// threshold deep_blue_b (DeepBlueB): 0 to 1 over a few units of b*.
+inline float DeepBlue(float b, float deep_blue_b) { return Logistic((deep_blue_b - b) * (1.0f / 3)); }
+
 inline int HistIndex(float l, float a, float b) {
   const int li = std::clamp(static_cast<int>(l * (kHistBins / 100.0f)), 0, kHistBins - 1);
   const int ai = std::clamp(static_cast<int>((a + 64.0f) * (kHistBins / 128.0f)), 0, kHistBins - 1);
@@ -100,7 +104,7 @@ HR_VECTOR_CLONES void SkyScoreFromTopBand(const LabPlanes& lab, float deep_blue_
     for (int r = 0; r < h; ++r) {
       const float warm = Logistic((b[r] - 6.0f) / 2.0f) + Logistic((std::abs(a[r]) - 10.0f) / 2.0f);
       not_warm[r] = warm < 1.0f ? 1.0f - warm : 0.0f;
-      deep_blue[r] = Logistic((deep_blue_b - b[r]) * (1.0f / 3));
+      deep_blue[r] = DeepBlue(b[r], deep_blue_b);
     }
     auto exp_of_ref = [](float ref) { return ExpApprox((ref - kDarkDrop) * (1.0f / kDarkScale)); };
     for (int r = 0; r < h; ++r) {  // a loop apart: GCC vectorises at most 10 alias tests
@@ -176,7 +180,7 @@ inline float StepAt(const float* l, const float* a, const float* b, int i0, int 
   // A step down into saturated blue is within the sky (a cloud's base, the
   // renderer's or a real sky's deep blue near the horizon): terrain below
   // the skyline is never that blue, even far and hazy.
-  const float into_deep_blue = Logistic((deep_blue_b - below_b) * (1.0f / 3));
+  const float into_deep_blue = DeepBlue(below_b, deep_blue_b);
   return (dl > 2.0f ? 0.5f * mag : mag) * (1.0f - into_deep_blue);
 }
 
@@ -425,11 +429,11 @@ HR_VECTOR_CLONES void PersistentSteps(const LabPlanes& lab, int k, float deep_bl
     const int last = end - 2;
     for (int y = k; y <= std::min(end, last); ++y) {
       const float below_b = (cb[y + 2 + k] - cb[y + 2]) * inv_k;
-      o[y] = std::min(plain[y], trend[y]) * (1.0f - Logistic((deep_blue_b - below_b) * (1.0f / 3)));
+      o[y] = std::min(plain[y], trend[y]) * (1.0f - DeepBlue(below_b, deep_blue_b));
     }
     for (int y = std::max(k, last + 1); y <= end; ++y) {
       const float below_b = (cb[h] - cb[h - k]) * inv_k;
-      o[y] = std::min(plain[y], trend[y]) * (1.0f - Logistic((deep_blue_b - below_b) * (1.0f / 3)));
+      o[y] = std::min(plain[y], trend[y]) * (1.0f - DeepBlue(below_b, deep_blue_b));
     }
   }
 }
@@ -481,7 +485,7 @@ HR_VECTOR_CLONES void VetoSubtleDepartures(const cv::Mat& deviation, const LabPl
     for (int r = 0; r < h; ++r) {
       const float off = Logistic((dev[r] - kSkyModelVeto) * 2.0f) *
                         Logistic((kSubtleDeltaE - dev[r] * sky_scale) * (1.0f / 1.5f)) *
-                        (1.0f - Logistic((deep_blue_b - b[r]) * (1.0f / 3)));
+                        (1.0f - DeepBlue(b[r], deep_blue_b));
       s[r] *= 1.0f - off;
     }
   }
