@@ -12,6 +12,18 @@ constexpr int kStepColumns = 2;        // refinement: steps read from the column
 constexpr float kFaintContrast = 8.0f;  // delta E below which a boundary is read from the averaged columns
 constexpr float kTreeGreen = 7.0f;     // -a* above which a dark boundary is a tree (dark shaded terrain is greyer)
 
+// RaiseToSkyEnd (at 1024 columns; rows scale with the width).
+constexpr int kSkyEndSearchRows = 20;  // how far above the boundary the sky's end is sought
+constexpr int kSkyEndFitRows = 16;     // the rows above a candidate row fitted by a line
+constexpr int kSkyEndMinRaise = 3;     // rows: a smaller raise is left to the crossing
+constexpr float kSkyEndChromaWeight = 0.4f;  // JPEG blurs and blocks the chroma
+constexpr float kSkyEndSigmas = 4.0f, kSkyEndMinDeltaE = 3.5f;
+constexpr float kSkyEndUniform = 0.5f;      // the fitted rows' 90th-percentile residual, at most this share of the threshold
+constexpr float kSkyEndHeldShare = 0.8f;    // share of the rows down to the boundary that depart
+constexpr float kSkyEndTexture = 3.0f;      // their texture over the fitted rows' (floor 0.3 delta L)
+constexpr int kSkyEndEdgeRows = 2;          // rows above the boundary left out of the texture (a sloping edge)
+constexpr float kSkyEndTextureFloor = 0.3f;
+
 }  // namespace
 
 void GatherStrips(const cv::Mat& bgr, RefineStrips& strips) {
@@ -106,6 +118,94 @@ ColumnFit RefineColumn(RefineStrips& strips, int x, int h, int centre, int windo
     fit = averaged;
   }
   return fit;
+}
+
+void RaiseToSkyEnd(const cv::Mat& bgr, const std::vector<uint8_t>& skip, std::vector<double>& y) {
+  const int h = bgr.rows, w = bgr.cols;
+  const double scale = std::max(1.0, w / 1024.0);
+  const int search = static_cast<int>(std::lround(kSkyEndSearchRows * scale));
+  const int fit_rows = static_cast<int>(std::lround(kSkyEndFitRows * scale));
+  const int count = search + fit_rows + 1;
+  // Per column, three strips of `count` rows (the column and its two
+  // neighbours) ending at its boundary row, converted in one batch.
+  std::vector<int> first(w, RefineStrips::kNoStrip);
+  for (int x = 0; x < w; ++x)
+    if (std::isfinite(y[x]) && !skip[x] && std::floor(y[x]) - kSkyEndMinRaise >= fit_rows)
+      first[x] = static_cast<int>(std::floor(y[x])) - search - fit_rows;
+  LabStrips lab;
+  lab.bgr.assign(9 * static_cast<size_t>(w) * count, 0);
+  for (int x = 0; x < w; ++x) {
+    if (first[x] == RefineStrips::kNoStrip) continue;
+    for (int k = 0; k < 3; ++k) {
+      const int c = std::clamp(x + k - 1, 0, w - 1);
+      uint8_t* out = lab.bgr.data() + 3 * (static_cast<size_t>(3 * x + k) * count);
+      for (int i = 0; i < count; ++i) {
+        const uint8_t* px = bgr.ptr<uint8_t>(std::clamp(first[x] + i, 0, h - 1)) + 3 * c;
+        std::copy(px, px + 3, out + 3 * i);
+      }
+    }
+  }
+  lab.Convert();
+  std::vector<float> res(fit_rows), sorted(fit_rows), tex(count), curl(count);
+  for (int x = 0; x < w; ++x) {
+    if (first[x] == RefineStrips::kNoStrip) continue;
+    const size_t own = static_cast<size_t>(3 * x + 1) * count, left = own - count, right = own + count;
+    const float* l = lab.l.data() + own;
+    const float* a = lab.a.data() + own;
+    const float* b = lab.b.data() + own;
+    // Texture: the lightness difference between the neighbouring columns
+    // (rock and snow) and its second difference (a cloud's smooth
+    // gradient has one but not the other).
+    for (int i = 0; i < count; ++i) {
+      const float lr = lab.l[right + i], ll = lab.l[left + i];
+      tex[i] = 0.5f * std::abs(lr - ll), curl[i] = std::abs(lr - 2.0f * l[i] + ll);
+    }
+    const int yi = static_cast<int>(std::floor(y[x])) - first[x];  // the boundary row, strip index
+    for (int r = std::max(fit_rows, static_cast<int>(std::floor(y[x])) - search) - first[x]; r <= yi - kSkyEndMinRaise;
+         ++r) {
+      // Least-squares line through rows r - fit_rows .. r - 1, per channel,
+      // in t = row - r (mean t = -(n + 1) / 2).
+      const int n = fit_rows;
+      const double tm = -(n + 1) / 2.0;
+      double stt = 0, mean[3] = {0, 0, 0}, st[3] = {0, 0, 0};
+      for (int i = r - n; i < r; ++i) {
+        const double t = (i - r) - tm;
+        const double v[3] = {l[i], kSkyEndChromaWeight * a[i], kSkyEndChromaWeight * b[i]};
+        stt += t * t;
+        for (int k = 0; k < 3; ++k) mean[k] += v[k], st[k] += t * v[k];
+      }
+      double slope[3];
+      for (int k = 0; k < 3; ++k) mean[k] /= n, slope[k] = st[k] / stt;
+      auto departure = [&](int i) {
+        const double t = (i - r) - tm;
+        const double d0 = l[i] - (mean[0] + slope[0] * t), d1 = kSkyEndChromaWeight * a[i] - (mean[1] + slope[1] * t),
+                     d2 = kSkyEndChromaWeight * b[i] - (mean[2] + slope[2] * t);
+        return static_cast<float>(std::sqrt(d0 * d0 + d1 * d1 + d2 * d2));
+      };
+      for (int i = 0; i < n; ++i) res[i] = departure(r - n + i);
+      sorted = res;
+      std::sort(sorted.begin(), sorted.end());
+      const float median = 0.5f * (sorted[(n - 1) / 2] + sorted[n / 2]);
+      const float q = 0.9f * (n - 1);
+      const int q0 = static_cast<int>(q);
+      const float p90 = sorted[q0] + (q - q0) * (sorted[std::min(n - 1, q0 + 1)] - sorted[q0]);
+      const float threshold = std::max(kSkyEndSigmas * (1.48f * median + 0.2f), kSkyEndMinDeltaE);
+      if (p90 > kSkyEndUniform * threshold) continue;
+      int held = 0;
+      for (int i = r; i < yi; ++i) held += departure(i) > threshold;
+      if (!(departure(r) > threshold && departure(r + 1) > threshold) || held < kSkyEndHeldShare * (yi - r)) continue;
+      auto textured = [&](const std::vector<float>& t) {
+        float below = 0, above = 0;
+        const int end = yi - kSkyEndEdgeRows;
+        for (int i = r + 1; i < end; ++i) below += t[i];
+        for (int i = r - n; i < r; ++i) above += t[i];
+        below /= std::max(1, end - r - 1), above /= n;
+        return below > kSkyEndTexture * std::max(above, kSkyEndTextureFloor);
+      };
+      if (textured(tex) && textured(curl)) y[x] = first[x] + r - 0.5;
+      break;
+    }
+  }
 }
 
 std::vector<uint8_t> FindOccluders(const std::vector<ColumnFit>& fits, int image_rows) {

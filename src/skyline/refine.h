@@ -66,6 +66,29 @@ void GatherStrips(const cv::Mat& bgr, RefineStrips& strips);
 // centre + window + 4.
 ColumnFit RefineColumn(RefineStrips& strips, int x, int h, int centre, int window);
 
+// Raises each column's boundary to where the sky ends, when the boundary
+// found lies a few rows inside the terrain: a hazy far ridge whose colour is
+// a few delta E off the sky's (its snow tinted blue by the air) is taken for
+// sky down to a clearer step below it. From the top of the search (20 rows
+// above the boundary, scaled with the width over 1024) down, the first row
+// where the column departs from a straight-line fit of the 16 rows above it
+// (CIELAB, chroma weighted 0.4: JPEG blurs and blocks it) by more than
+// max(4 robust sigmas of the fit, 3.5) is the sky's end, when
+//  - the fitted rows are uniform (90% within half that threshold: no
+//    edge, cloud or band among them),
+//  - the departure holds in the next row and in 80% of the rows down to the
+//    boundary (a ridge, not a ripple in the sky), and
+//  - those rows (but the 2 next to the boundary, where a sloping edge
+//    passes the neighbouring columns) have horizontal texture at least 3
+//    times the fitted rows': the lightness difference between the
+//    neighbouring columns and its second difference (rock and snow, not a
+//    smooth band of sky or the gradient of a cloud), and
+//  - it lies at least 3 rows above the boundary (closer, the refinement's
+//    crossing is as good).
+// The boundary then lies half a row above that row. Columns flagged in
+// `skip` and null ones are left alone.
+void RaiseToSkyEnd(const cv::Mat& bgr, const std::vector<uint8_t>& skip, std::vector<double>& y);
+
 // 1 for the columns where an occluder (tree, pole) hides the horizon.
 std::vector<uint8_t> FindOccluders(const std::vector<ColumnFit>& fits, int image_rows);
 

@@ -748,6 +748,8 @@ Skyline ExtractSkyline(const cv::Mat& image, const SkylineOptions& options) {
       std::fill(out.confidence.begin(), out.confidence.end(), 0.0);
     }
   }
+  // A hazy far ridge's top taken for sky: the boundary up to where the sky ends.
+  skyline_detail::RaiseToSkyEnd(bgr, grown, out.y);
   return out;
 }
 
