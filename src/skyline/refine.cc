@@ -15,7 +15,7 @@ constexpr float kTreeGreen = 7.0f;     // -a* above which a dark boundary is a t
 // RaiseToSkyEnd (at 1024 columns; rows scale with the width).
 constexpr int kSkyEndSearchRows = 20;  // how far above the boundary the sky's end is sought
 constexpr int kSkyEndFitRows = 16;     // the rows above a candidate row fitted by a line
-constexpr int kSkyEndMinRaise = 3;     // rows: a smaller raise is left to the crossing
+constexpr int kSkyEndMinRaise = 4;     // rows: a smaller raise is left to the crossing (3 leaves no texture rows)
 constexpr float kSkyEndChromaWeight = 0.4f;  // JPEG blurs and blocks the chroma
 constexpr float kSkyEndSigmas = 4.0f, kSkyEndMinDeltaE = 3.5f;
 constexpr float kSkyEndUniform = 0.5f;      // the fitted rows' 90th-percentile residual, at most this share of the threshold

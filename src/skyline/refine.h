@@ -83,8 +83,9 @@ ColumnFit RefineColumn(RefineStrips& strips, int x, int h, int centre, int windo
 //    times the fitted rows': the lightness difference between the
 //    neighbouring columns and its second difference (rock and snow, not a
 //    smooth band of sky or the gradient of a cloud), and
-//  - it lies at least 3 rows above the boundary (closer, the refinement's
-//    crossing is as good).
+//  - it lies at least 4 rows above the boundary: one row is left between
+//    it and the 2 edge rows to read the texture from (closer, the
+//    refinement's crossing is as good).
 // The boundary then lies half a row above that row. Columns flagged in
 // `skip` and null ones are left alone.
 void RaiseToSkyEnd(const cv::Mat& bgr, const std::vector<uint8_t>& skip, std::vector<double>& y);
