@@ -255,6 +255,9 @@ def main():
         if mode not in modes:
             continue
         with_camera = mode == "wrong-camera"
+        if with_camera:  # one file per photo, written before its probes run side by side and read it
+            for name, t, _ in photos:
+                camera_file(t, os.path.join(tmpdir, name + ".camera.json"))
         probes = []
         for p in photos:
             for bearing, dist in WRONG_OFFSETS:
@@ -268,9 +271,7 @@ def main():
             (name, t, d), label, dem, lat, lon, alt = x
             extra = []
             if with_camera:
-                path = os.path.join(tmpdir, name + ".camera.json")
-                camera_file(t, path)
-                extra = ["--camera", path]
+                extra = ["--camera", os.path.join(tmpdir, name + ".camera.json")]
             return name, label, register(binary, shared, d, name, t, extra, dem=dem, lat=lat, lon=lon, alt=alt)
         out = list(pool.map(probe, probes))
         print(f"\n== wrong position (2-10 km away) or another region's DEM{' with --camera' if with_camera else ''}: "
