@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <iomanip>
 #include <opencv2/core.hpp>
 #include <sstream>
 
@@ -262,6 +263,32 @@ Registration RegisterImage(const cv::Mat& image, const Skyline& skyline, const H
   return r;
 }
 
+namespace {
+
+// The misfit of the best distinct alternative among `reg`'s candidates
+// (farther than a tenth of the opening angle, at least 1 deg, in azimuth or
+// pitch), refined on the skyline re-read near its own projection, over
+// reg's misfit; infinity when there is none or nothing near it was re-read.
+template <typename Reread>
+double RivalAfterItsOwnReread(const Registration& reg, const Reread& reread_at, const HorizonProfile& horizon,
+                              const RegistrationOptions& options, int w, int h) {
+  const double tol = std::max(1.0, 0.1 * reg.hfov_deg);
+  for (const PoseCandidate& c : reg.candidates) {
+    if (std::abs(AngDiffDeg(c.pose.azimuth_deg, reg.pose.azimuth_deg)) < tol &&
+        std::abs(c.pose.pitch_deg - reg.pose.pitch_deg) < tol)
+      continue;
+    CameraIntrinsics k = reg.Intrinsics(w, h);
+    if (!options.known_intrinsics) k.focal_px = c.focal_px;
+    const auto [guided, reread] = reread_at(c.pose, k);
+    if (reread == 0) return INFINITY;
+    const Registration alt = RefinePose(guided, horizon, c.pose, c.focal_px, false, options);
+    return alt.misfit > 0.0 && reg.misfit > 0.0 ? alt.misfit / reg.misfit : INFINITY;
+  }
+  return INFINITY;
+}
+
+}  // namespace
+
 std::optional<Registration> RecheckWithGuidedSkyline(const cv::Mat& image, const Skyline& skyline,
                                                      const HorizonProfile& horizon, const Registration& first,
                                                      const RegistrationOptions& options) {
@@ -269,6 +296,11 @@ std::optional<Registration> RecheckWithGuidedSkyline(const cv::Mat& image, const
   const double min_first_inliers = options.min_inlier_fraction - 0.2;
   constexpr double kMinStep = 15.0;  // BGR distance of the 3-row means across the step (sky noise ~3)
   constexpr double kMaxPoseMoveDeg = 0.2;
+  // The best alternative re-read near its own projection, as the best pose
+  // was: its misfit at least this much over the best's (from 2 km away the
+  // re-read fits a wrong pose's rival within 3%; the true poses' rivals stay
+  // about 20% or more worse).
+  constexpr double kMinRivalMisfitRatio = 1.1;
   // The columns to re-read inflate the best pose's cost, so its ambiguity
   // ratio reads low; the search on the re-read skyline checks it again.
   const double min_first_ambiguity = 0.85 * options.min_ambiguity_ratio;
@@ -283,29 +315,35 @@ std::optional<Registration> RecheckWithGuidedSkyline(const cv::Mat& image, const
   const cv::Mat bgr = AsBgr(image);
   if (bgr.type() != CV_8UC3 || bgr.cols != w || bgr.rows != h || static_cast<int>(skyline.y.size()) != w)
     return std::nullopt;
-  const std::vector<double> pred = PredictedSkyline(horizon, first.pose, first.Intrinsics(w, h));
   auto mean3 = [&](int r0, int c) {  // mean BGR of rows r0 .. r0 + 2
     cv::Vec3d m(0, 0, 0);
     for (int r = r0; r < r0 + 3; ++r) m += cv::Vec3d(bgr.at<cv::Vec3b>(r, c));
     return m / 3.0;
   };
-  Skyline guided = skyline;
-  int reread = 0;
   std::vector<double> scores;
-  for (int c = 0; c < w; ++c) {
-    const double p = pred[c], y = skyline.y[c];
-    if (!std::isfinite(p) || !std::isfinite(y) || y - p <= tau) continue;  // fits, lies above, or is hidden
-    // Boundaries between rows r - 1 and r, above the extracted one.
-    const int lo = std::max(6, static_cast<int>(std::floor(p - 2 * tau)));
-    const int hi = std::min({h - 3, static_cast<int>(std::ceil(p + 2 * tau)), static_cast<int>(std::floor(y - tau))});
-    if (hi < lo) continue;
-    const auto [r, yr, contrast] = StrongestStep(
-        lo, hi, [&](int row) { return cv::norm(mean3(row, c) - mean3(row - 3, c)); }, scores);
-    if (contrast < kMinStep || cv::norm(mean3(r - 3, c) - mean3(r - 6, c)) > 0.5 * kMinStep) continue;
-    guided.y[c] = yr;
-    guided.confidence[c] = std::min(1.0, contrast / (4.0 * kMinStep));
-    ++reread;
-  }
+  // The skyline re-read near the horizon projected at `pose`, and how many
+  // columns were re-read.
+  auto reread_at = [&](const CameraPose& pose, const CameraIntrinsics& k) {
+    const std::vector<double> pred = PredictedSkyline(horizon, pose, k);
+    std::pair<Skyline, int> out{skyline, 0};
+    for (int c = 0; c < w; ++c) {
+      const double p = pred[c], y = skyline.y[c];
+      if (!std::isfinite(p) || !std::isfinite(y) || y - p <= tau) continue;  // fits, lies above, or is hidden
+      // Boundaries between rows r - 1 and r, above the extracted one.
+      const int lo = std::max(6, static_cast<int>(std::floor(p - 2 * tau)));
+      const int hi =
+          std::min({h - 3, static_cast<int>(std::ceil(p + 2 * tau)), static_cast<int>(std::floor(y - tau))});
+      if (hi < lo) continue;
+      const auto [r, yr, contrast] = StrongestStep(
+          lo, hi, [&](int row) { return cv::norm(mean3(row, c) - mean3(row - 3, c)); }, scores);
+      if (contrast < kMinStep || cv::norm(mean3(r - 3, c) - mean3(r - 6, c)) > 0.5 * kMinStep) continue;
+      out.first.y[c] = yr;
+      out.first.confidence[c] = std::min(1.0, contrast / (4.0 * kMinStep));
+      ++out.second;
+    }
+    return out;
+  };
+  const auto [guided, reread] = reread_at(first.pose, first.Intrinsics(w, h));
   // A few columns would only give the refit a second chance at the same
   // skyline: the re-read must be a part of it that can carry the decision.
   if (reread < std::max(8, w / 32)) return std::nullopt;
@@ -328,6 +366,13 @@ std::optional<Registration> RecheckWithGuidedSkyline(const cv::Mat& image, const
     } else if (moved(search.pose)) {
       r.registered = false;
       m << "the re-read skyline registers elsewhere; " << first.message;
+    } else if (const double rival = RivalAfterItsOwnReread(search, reread_at, horizon, options, w, h);
+               rival < kMinRivalMisfitRatio) {
+      // Re-reading near a pose's own projection helps any pose; the best
+      // alternative given the same help must still fit clearly worse.
+      r.registered = false;
+      m << "ambiguous once the best alternative's skyline is re-read too (misfit ratio " << std::setprecision(3)
+        << rival << "); " << first.message;
     } else {
       r = search;
       m << "registered (" << reread << " columns re-read near the DEM horizon)";
