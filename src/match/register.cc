@@ -612,6 +612,8 @@ Registration Register(const Skyline& skyline, const HorizonProfile& horizon, con
     out.second_cost = adapted_scorer.Cost(second_candidate->pose, all);
     out.second_inlier_fraction = adapted_scorer.InlierShare(second_candidate->pose, all);
     out.second_misfit = adapted_scorer.Misfit(closest_rival->pose, all);
+    out.rival = PoseCandidate{second_candidate->pose.ToPose(), second_candidate->pose.f, second_candidate->cost,
+                              second_candidate->inliers};
   }
   out.ambiguity_ratio = second_candidate ? out.second_cost / std::max(best_cost, 1e-9) : INFINITY;
   out.ex_px = corrections[order[0]].ex_px;

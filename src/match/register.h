@@ -150,6 +150,7 @@ struct Registration {
   double azimuth_sigma_deg = NAN, pitch_sigma_deg = NAN, roll_sigma_deg = NAN, focal_sigma_px = NAN;
   DemLimits dem;
   std::vector<PoseCandidate> candidates;  // the refined candidates of the search, best first (empty for RefinePose)
+  std::optional<PoseCandidate> rival;     // the distinct alternative the ambiguity ratio is taken against (search only)
   int hypotheses = 0;  // hypotheses scored after the constraints
   int image_extrema = 0, horizon_extrema = 0;
   // intrinsics for an image of this size (the registered one or a resized copy).

@@ -265,26 +265,20 @@ Registration RegisterImage(const cv::Mat& image, const Skyline& skyline, const H
 
 namespace {
 
-// The misfit of the best distinct alternative among `reg`'s candidates
-// (farther than a tenth of the opening angle, at least 1 deg, in azimuth or
-// pitch), refined on the skyline re-read near its own projection, over
-// reg's misfit; infinity when there is none or nothing near it was re-read.
+// The misfit of `reg`'s rival (the distinct alternative its ambiguity ratio
+// is taken against), refined on the skyline re-read near the rival's own
+// projection, over reg's misfit; infinity when there is none or nothing near
+// it was re-read.
 template <typename Reread>
 double RivalAfterItsOwnReread(const Registration& reg, const Reread& reread_at, const HorizonProfile& horizon,
                               const RegistrationOptions& options, int w, int h) {
-  const double tol = std::max(1.0, 0.1 * reg.hfov_deg);
-  for (const PoseCandidate& c : reg.candidates) {
-    if (std::abs(AngDiffDeg(c.pose.azimuth_deg, reg.pose.azimuth_deg)) < tol &&
-        std::abs(c.pose.pitch_deg - reg.pose.pitch_deg) < tol)
-      continue;
-    CameraIntrinsics k = reg.Intrinsics(w, h);
-    if (!options.known_intrinsics) k.focal_px = c.focal_px;
-    const auto [guided, reread] = reread_at(c.pose, k);
-    if (reread == 0) return INFINITY;
-    const Registration alt = RefinePose(guided, horizon, c.pose, c.focal_px, false, options);
-    return alt.misfit > 0.0 && reg.misfit > 0.0 ? alt.misfit / reg.misfit : INFINITY;
-  }
-  return INFINITY;
+  if (!reg.rival) return INFINITY;
+  CameraIntrinsics k = reg.Intrinsics(w, h);
+  if (!options.known_intrinsics) k.focal_px = reg.rival->focal_px;
+  const auto [guided, reread] = reread_at(reg.rival->pose, k);
+  if (reread == 0) return INFINITY;
+  const Registration alt = RefinePose(guided, horizon, reg.rival->pose, reg.rival->focal_px, false, options);
+  return alt.misfit > 0.0 && reg.misfit > 0.0 ? alt.misfit / reg.misfit : INFINITY;
 }
 
 }  // namespace

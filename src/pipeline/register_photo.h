@@ -131,10 +131,10 @@ Registration RegisterImage(const cv::Mat& image, const Skyline& skyline, const H
 // step inside it is structure, whereas the terrain below a projection is full
 // of edges that would confirm any pose; null (hidden) columns stay null. The
 // new pose must lie within 0.2 deg of the first one. Re-reading near a
-// pose's own projection helps any pose, so the best distinct alternative of
-// that search (beyond a tenth of the opening angle, at least 1 deg) is
-// re-read near its own projection and refined, and its misfit must still be
-// at least 1.1 times the best's. Returns the new
+// pose's own projection helps any pose, so that search's rival (the
+// alternative of its ambiguity ratio) is re-read near its own projection and
+// refined, and its misfit must still be at least 1.1 times the best's.
+// Returns the new
 // registration (registered or not), or nullopt when fewer than
 // max(8, width / 32) columns were re-read.
 std::optional<Registration> RecheckWithGuidedSkyline(const cv::Mat& image, const Skyline& skyline,
