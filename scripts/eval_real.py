@@ -16,7 +16,7 @@ Modes (each a per-photo table and a summary):
             DEM: every one must answer no_match (a registration there is false)
   wrong-camera  the same probes with --camera from the truth (a known lens
             narrows the search to other pairs of peaks)
-  perturbed (not in the default set; about 4 minutes) plain and wrong again
+  perturbed (not in the default set; about 2 minutes) plain and wrong again
             under 6 harmless changes of the horizon's sampling (--step 0.08,
             0.09, 0.12, 0.125) and refraction (--refraction 0.10, 0.16) as
             well as the defaults: how often each photo registers, and how
@@ -314,6 +314,8 @@ def main():
               "(" + "; ".join(" ".join(pe) or "defaults" for pe in PERTURBATIONS) + ") ==")
         print(f"{'photo':<24}{'correct':>8}  cost ratios")
         correct, total, false_runs, wrong_ratios = 0, 0, [], []
+        errs = [(p[0], label, " ".join(pe), r.get("message")) for (p, label, _, _, _, _, pe), r in zip(runs, results)
+                if r.get("status") == "error"]
         for name, _, _ in photos:
             ratios, ok = [], 0
             for (p, label, _, _, _, _, pe), r in zip(runs, results):
@@ -345,8 +347,10 @@ def main():
               f"gate ({GATE_RATIO}): {len(near)}")
         for a, n, l, pe in near:
             print(f"  near miss: {n} from {l} ({pe or 'defaults'}): {a}")
-        if check and false_runs:
-            print("FAIL: a perturbed run registered falsely")
+        for n, l, pe, m in errs:
+            print(f"  error: {n} from {l} ({pe or 'defaults'}): {m}")
+        if check and (false_runs or errs):
+            print("FAIL: a perturbed run registered falsely or failed")
             failed = True
     return 1 if failed else 0
 
