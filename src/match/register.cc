@@ -596,8 +596,8 @@ Registration Register(const Skyline& skyline, const HorizonProfile& horizon, con
     out.message = "no refined hypothesis within the opening-angle range and priors";
     return out;
   }
-  for (size_t i : order)
-    out.candidates.push_back({refined[i].pose.ToPose(), refined[i].pose.f, refined[i].cost, refined[i].inliers});
+  auto reported = [](const Candidate& c) { return PoseCandidate{c.pose.ToPose(), c.pose.f, c.cost, c.inliers}; };
+  for (size_t i : order) out.candidates.push_back(reported(refined[i]));
   const Candidate& best = refined[order[0]];
   // The DEM's flattening as the best pose shows it; the best and its
   // alternative are then judged alike under it (a view rendered from the
@@ -612,8 +612,7 @@ Registration Register(const Skyline& skyline, const HorizonProfile& horizon, con
     out.second_cost = adapted_scorer.Cost(second_candidate->pose, all);
     out.second_inlier_fraction = adapted_scorer.InlierShare(second_candidate->pose, all);
     out.second_misfit = adapted_scorer.Misfit(closest_rival->pose, all);
-    out.rival = PoseCandidate{second_candidate->pose.ToPose(), second_candidate->pose.f, second_candidate->cost,
-                              second_candidate->inliers};
+    out.rival = reported(*second_candidate);
   }
   out.ambiguity_ratio = second_candidate ? out.second_cost / std::max(best_cost, 1e-9) : INFINITY;
   out.ex_px = corrections[order[0]].ex_px;
