@@ -13,6 +13,7 @@ packages=(
 if [ "${1:-}" = "--test" ]; then
   packages+=(grass-core)  # the r.horizon comparison test
   packages+=(python3-pytest python3-distributed)  # the Python API and Dask tests
+  packages+=(python3-opencv)  # eval_real.py's thin-sky crops
 fi
 if [ "${1:-}" = "--fuzz" ]; then
   packages+=(clang libclang-rt-dev)  # libFuzzer (-fsanitize=fuzzer) comes with clang's compiler-rt

@@ -438,26 +438,36 @@ HR_VECTOR_CLONES void PersistentSteps(const LabPlanes& lab, int k, float deep_bl
   }
 }
 
-// The paper's first sharp edge from the top, made global: the boundary with
-// a clear persistent step, whose rows above hold no clear step. "Clear" is
-// relative to the sky's own noise (the median persistent step of the top
-// fifth of the image), so a faint ridge in haze counts when the sky above it
-// is smooth. Returns the boundary per column (work size).
-std::vector<int> TopmostEdge(const cv::Mat& steps, double smoothness, double slope, cv::Mat& unary,
-                             std::vector<float>& acc, float& sky_noise) {
-  const int w = steps.rows, n = steps.cols, h = n - 1;
-  std::vector<float> sample;
-  const int top_rows = std::max(8, h / 5);
+// The sky's noise: the median persistent step of the top fifth of the
+// image; with `sky_below` (the first boundary), only of the steps whose rows
+// lie above it (where the sky is a thin strip, the terrain's texture below
+// it is no measure of the sky's), unless that leaves fewer than two rows.
+float SkyNoise(const cv::Mat& steps, const std::vector<int>* sky_below) {
+  const int w = steps.rows, h = steps.cols - 1;
+  std::vector<float> sample, top_fifth;
+  const int top_rows = std::min(h, std::max(8, h / 5));
   for (int c = 0; c < w; c += 2) {
     const float* s = steps.ptr<float>(c);
-    for (int y = kPersistentRows; y < std::min(h, top_rows); ++y) sample.push_back(s[y]);
+    const int end = sky_below ? std::min(top_rows, (*sky_below)[c] - kPersistentRows) : top_rows;
+    for (int y = kPersistentRows; y < top_rows; ++y) (y < end ? sample : top_fifth).push_back(s[y]);
   }
+  if (sample.size() < static_cast<size_t>(w)) sample.insert(sample.end(), top_fifth.begin(), top_fifth.end());
   float noise = 0.1f;
   if (!sample.empty()) {
     std::nth_element(sample.begin(), sample.begin() + sample.size() / 2, sample.end());
     noise = std::max(noise, sample[sample.size() / 2]);
   }
-  sky_noise = noise;
+  return noise;
+}
+
+// The paper's first sharp edge from the top, made global: the boundary with
+// a clear persistent step, whose rows above hold no clear step. "Clear" is
+// relative to the noise of the top of the image (`noise`, SkyNoise), so a
+// faint ridge in haze counts when the sky above it is smooth. Returns the
+// boundary per column (work size).
+std::vector<int> TopmostEdge(const cv::Mat& steps, float noise, double smoothness, double slope, cv::Mat& unary,
+                             std::vector<float>& acc) {
+  const int w = steps.rows, n = steps.cols;
   const float thr = std::max(kTopmostMinStep, kTopmostNoiseFactor * noise), cap = 3.0f * thr;
   unary.create(w, n, CV_32F);
   for (int c = 0; c < w; ++c) {
@@ -657,8 +667,19 @@ Skyline ExtractSkyline(const cv::Mat& image, const SkylineOptions& options) {
   // stops at it), vetoes sky where a pixel departs from the sky colour
   // expected at its place.
   PersistentSteps(work_t, kPersistentRows, deep_blue_b, ws.persistent);
-  float sky_noise = 0.0f;  // median persistent step in the top of the image, delta E
-  const std::vector<int> topmost = TopmostEdge(ws.persistent, options.smoothness, slope, ws.unary, ws.acc, sky_noise);
+  // The topmost edge's threshold scales with the noise of the whole top of
+  // the image (cloud texture there raises it, so a cloud's soft edge is no
+  // clear step); the contrast a column needs, with the sky's own noise
+  // (measured over the whole top, a thin strip of sky over textured
+  // terrain read as noisy and nulled up to half the columns: given 76% ->
+  // 84% of the traced columns of the real photos cropped to 10 px of sky
+  // above their highest point, 91.4% -> 92.4% uncropped; the rendered
+  // scenes unchanged. Measured above the first clear step as well, the
+  // noise of a sky with clouds read low, and their edges passed for
+  // terrain on the rendered scenes).
+  const float top_noise = SkyNoise(ws.persistent, nullptr);
+  const float sky_noise = SkyNoise(ws.persistent, &boundary);  // delta E
+  const std::vector<int> topmost = TopmostEdge(ws.persistent, top_noise, options.smoothness, slope, ws.unary, ws.acc);
   std::vector<int> fit_top(ww);
   for (int c = 0; c < ww; ++c) fit_top[c] = std::min(topmost[c], boundary[c]) - 3;
   SkyModel sky_model;

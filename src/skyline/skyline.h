@@ -24,8 +24,9 @@ struct SkylineOptions {
   double edge_weight = 1.0;             // DP reward per unit of colour step (CIELAB delta E) at the boundary.
   // Columns whose sky/ground colours differ less are null: delta E, at
   // least min_contrast and min_contrast_sigmas times the sky's pixel noise
-  // (read from the smooth top of the image: a faint ridge in haze under a
-  // smooth sky stands clear of it).
+  // (read from the sky at the top of the image, above the first boundary:
+  // a faint ridge in haze under a smooth sky stands clear of it, and a thin
+  // strip of sky is not judged by the terrain's texture below it).
   double min_contrast = 2.5;
   double min_contrast_sigmas = 2.5;
   // Fog: all null when the sky above the boundary is white-grey (chroma

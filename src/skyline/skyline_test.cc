@@ -84,6 +84,34 @@ TEST(ExtractSkyline, NoisySkyAboveAHazyRidgeIsNotTakenForTheSkyline) {
   EXPECT_GE(good, 0.7 * 1024);
 }
 
+// A thin strip of smooth sky over textured snow (a camera pitched down, as
+// at many time-lapse stations): the sky's noise is the strip's, not the
+// snow's texture below it, and the boundary keeps its columns.
+TEST(ExtractSkyline, ThinSkyStripOverTexturedSnowKeepsItsColumns) {
+  const int w = 768, h = 512;
+  cv::Mat img(h, w, CV_8UC3);
+  std::vector<double> truth(w);
+  for (int x = 0; x < w; ++x) truth[x] = 22.0 + 6.0 * std::sin(x / 41.0);
+  cv::RNG rng(11);
+  cv::Mat texture(h / 4, w / 4, CV_8U);
+  rng.fill(texture, cv::RNG::UNIFORM, 0, 90);
+  cv::resize(texture, texture, img.size(), 0, 0, cv::INTER_NEAREST);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      const int t = texture.at<uint8_t>(y, x);  // sunlit snow and shadowed rock, in 4 px blocks
+      img.at<cv::Vec3b>(y, x) = y + 0.5 < truth[x] ? cv::Vec3b(215, 185, 160)
+                                                   : cv::Vec3b(250 - t, 248 - t, 245 - t);
+    }
+  const Skyline s = ExtractSkyline(img, SkylineOptions{});
+  int good = 0, given = 0;
+  for (int x = 0; x < w; ++x) {
+    given += std::isfinite(s.y[x]);
+    good += std::isfinite(s.y[x]) && std::abs(s.y[x] - std::ceil(truth[x] - 0.5)) <= 2.0;
+  }
+  EXPECT_GE(given, 0.9 * w);
+  EXPECT_GE(good, 0.85 * w);
+}
+
 TEST(ExtractSkyline, UniformAllSkyAndAllGroundImagesGiveAllNull) {
   const cv::Mat grey(300, 400, CV_8UC3, cv::Scalar(128, 128, 128));
   const cv::Mat sky(300, 400, CV_8UC3, cv::Scalar(235, 200, 160));
