@@ -76,15 +76,20 @@ nlohmann::json RegistrationReport(const Site& site, const PhotoRegistration& pho
                    {"independent_inliers", Rounded(r.independent_inliers, 1)},
                    {"nats", Rounded(r.evidence_nats, 1)}};
   j["hypotheses"] = r.hypotheses;
+  auto candidate = [&](const PoseCandidate& c) {
+    return nlohmann::json{{"azimuth_deg", Rounded(c.pose.azimuth_deg, 3)},
+                          {"pitch_deg", Rounded(c.pose.pitch_deg, 3)},
+                          {"roll_deg", Rounded(c.pose.roll_deg, 3)},
+                          {"hfov_deg", Rounded(HfovFromFocalDeg(c.focal_px, photo.width), 3)},
+                          {"cost", Rounded(c.cost, 4)},
+                          {"inlier_fraction", Rounded(c.inlier_fraction, 3)}};
+  };
   nlohmann::json alternatives = nlohmann::json::array();
-  for (const PoseCandidate& c : r.candidates)
-    alternatives.push_back({{"azimuth_deg", Rounded(c.pose.azimuth_deg, 3)},
-                            {"pitch_deg", Rounded(c.pose.pitch_deg, 3)},
-                            {"roll_deg", Rounded(c.pose.roll_deg, 3)},
-                            {"hfov_deg", Rounded(HfovFromFocalDeg(c.focal_px, photo.width), 3)},
-                            {"cost", Rounded(c.cost, 4)},
-                            {"inlier_fraction", Rounded(c.inlier_fraction, 3)}});
+  for (const PoseCandidate& c : r.candidates) alternatives.push_back(candidate(c));
   j["candidates"] = alternatives;
+  // The distinct alternative the ambiguity ratio is taken against (null when
+  // none was found or the pose was refined from a given start).
+  j["rival"] = r.rival ? candidate(*r.rival) : nlohmann::json(nullptr);
   j["extrema"] = {{"image", r.image_extrema}, {"horizon", r.horizon_extrema}};
   const Skyline& skyline = photo.skyline;
   j["skyline_visible_fraction"] =
