@@ -438,31 +438,40 @@ HR_VECTOR_CLONES void PersistentSteps(const LabPlanes& lab, int k, float deep_bl
   }
 }
 
-// The sky's noise: the median persistent step of the top fifth of the
-// image; with `sky_below` (the first boundary), only of the steps whose rows
-// lie above it (where the sky is a thin strip, the terrain's texture below
-// it is no measure of the sky's), unless that leaves fewer than two rows.
-float SkyNoise(const cv::Mat& steps, const std::vector<int>* sky_below) {
+// The noise of the top fifth of the image and of the sky in it: the median
+// persistent step of all its rows, and of those whose steps lie above the
+// first boundary `sky_below` (where the sky is a thin strip, the terrain's
+// texture below it is no measure of the sky's), unless that leaves fewer
+// than two rows (then the whole top fifth's). One scan for both.
+struct TopNoise {
+  float top = 0.1f, sky = 0.1f;  // delta E
+};
+TopNoise MeasureTopNoise(const cv::Mat& steps, const std::vector<int>& sky_below) {
   const int w = steps.rows, h = steps.cols - 1;
-  std::vector<float> sample, top_fifth;
+  std::vector<float> sky, rest;
   const int top_rows = std::min(h, std::max(8, h / 5));
   for (int c = 0; c < w; c += 2) {
     const float* s = steps.ptr<float>(c);
-    const int end = sky_below ? std::min(top_rows, (*sky_below)[c] - kPersistentRows) : top_rows;
-    for (int y = kPersistentRows; y < top_rows; ++y) (y < end ? sample : top_fifth).push_back(s[y]);
+    const int end = std::min(top_rows, sky_below[c] - kPersistentRows);
+    for (int y = kPersistentRows; y < top_rows; ++y) (y < end ? sky : rest).push_back(s[y]);
   }
-  if (sample.size() < static_cast<size_t>(w)) sample.insert(sample.end(), top_fifth.begin(), top_fifth.end());
-  float noise = 0.1f;
-  if (!sample.empty()) {
-    std::nth_element(sample.begin(), sample.begin() + sample.size() / 2, sample.end());
-    noise = std::max(noise, sample[sample.size() / 2]);
-  }
-  return noise;
+  auto median = [](std::vector<float>& v) {
+    if (v.empty()) return 0.1f;
+    std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+    return std::max(0.1f, v[v.size() / 2]);
+  };
+  TopNoise out;
+  const bool enough_sky = sky.size() >= static_cast<size_t>(w);
+  if (enough_sky) out.sky = median(sky);
+  sky.insert(sky.end(), rest.begin(), rest.end());
+  out.top = median(sky);
+  if (!enough_sky) out.sky = out.top;
+  return out;
 }
 
 // The paper's first sharp edge from the top, made global: the boundary with
 // a clear persistent step, whose rows above hold no clear step. "Clear" is
-// relative to the noise of the top of the image (`noise`, SkyNoise), so a
+// relative to the noise of the top of the image (`noise`, TopNoise::top), so a
 // faint ridge in haze counts when the sky above it is smooth. Returns the
 // boundary per column (work size).
 std::vector<int> TopmostEdge(const cv::Mat& steps, float noise, double smoothness, double slope, cv::Mat& unary,
@@ -677,9 +686,9 @@ Skyline ExtractSkyline(const cv::Mat& image, const SkylineOptions& options) {
   // scenes unchanged). The topmost edge's threshold from the sky's own
   // noise as well let cloud edges pass for terrain on the rendered scenes
   // (fuji_02: 79% -> 32% of its columns within 2 px).
-  const float top_noise = SkyNoise(ws.persistent, nullptr);
-  const float sky_noise = SkyNoise(ws.persistent, &boundary);  // delta E
-  const std::vector<int> topmost = TopmostEdge(ws.persistent, top_noise, options.smoothness, slope, ws.unary, ws.acc);
+  const TopNoise noise = MeasureTopNoise(ws.persistent, boundary);
+  const float sky_noise = noise.sky;
+  const std::vector<int> topmost = TopmostEdge(ws.persistent, noise.top, options.smoothness, slope, ws.unary, ws.acc);
   std::vector<int> fit_top(ww);
   for (int c = 0; c < ww; ++c) fit_top[c] = std::min(topmost[c], boundary[c]) - 3;
   SkyModel sky_model;
