@@ -19,6 +19,14 @@ Modes (each a per-photo table and a summary):
             DEM: every one must answer no_match (a registration there is false)
   wrong-camera  the same probes with --camera from the truth (a known lens
             narrows the search to other pairs of peaks)
+  ring      (not in the default set; about 1 minute) register from a ring of
+            wrong positions, 12 bearings (every 30 deg) at 2, 3 and 5 km:
+            wrong's 5 offsets sample a few bearings, and from a position 2-3 km
+            off, sideways to a far range 15-30 km away, the parallax between its
+            nearer and farther peaks is nearly absorbed by the opening angle,
+            pitch and roll. Counts registrations (all should be no_match) and
+            false ones (> 1 deg off in azimuth or pitch); with --check, fails
+            when the false ones exceed --floors ring=N (a ceiling, default 0)
   perturbed (not in the default set; about 2 minutes) plain and wrong again
             under 6 harmless changes of the horizon's sampling (--step 0.08,
             0.09, 0.12, 0.125) and refraction (--refraction 0.10, 0.16) as
@@ -39,6 +47,7 @@ THIN_SKY_PX = 10  # the thin mode's sky left above the traced horizon's highest 
 # Positions 2-10 km away (bearing deg, distance m) and other regions' DEMs
 # (with a position inside each), for the false-registration probes.
 WRONG_OFFSETS = [(0, 2000), (120, 3000), (240, 5000), (60, 7000), (300, 10000)]
+RING_OFFSETS = [(b, d) for d in (2000, 3000, 5000) for b in range(0, 360, 30)]  # the ring mode's
 OTHER_DEMS = [("mt_rainier_90m.tif", 46.80, -121.73), ("N47E009.hgt", 47.25, 9.35)]
 # The perturbed mode's changes: none should change the answer.
 PERTURBATIONS = [[], ["--step", "0.08"], ["--step", "0.09"], ["--step", "0.12"], ["--step", "0.125"],
@@ -192,7 +201,7 @@ def main():
     only = set(opt("--only").split(",")) if opt("--only") else None
     overlay_dir = opt("--overlay-dir")
     jobs = int(opt("--jobs", "2"))
-    floors = {"plain": 12, "camera": 12, "initial": 13, "skyline": 0.9, "thin": 0.9}
+    floors = {"plain": 12, "camera": 12, "initial": 13, "skyline": 0.9, "thin": 0.9, "ring": 0}
     for kv in (opt("--floors") or "").split(","):
         if "=" in kv:
             k, v = kv.split("=")
@@ -323,6 +332,43 @@ def main():
             print(f"  error: {n} from {l}: {m}")
         print(f"probes: {len(out)}; registered (false): {len(bad)}; errors: {len(errs)}")
         if check and (bad or errs):
+            failed = True
+    if "ring" in modes:
+        probes = [(p, b, dist) + offset_position(p[1]["lat"], p[1]["lon"], b, dist)
+                  for p in photos for b, dist in RING_OFFSETS]
+
+        def ring_probe(x):
+            (name, t, d), b, dist, lat, lon = x
+            return register(binary, shared, d, name, t, [], lat=lat, lon=lon)
+        out = list(pool.map(ring_probe, probes))
+        print(f"\n== a ring of wrong positions: 12 bearings at 2, 3 and 5 km ({len(probes)} probes) ==")
+        print(f"{'photo':<24}{'registered':>11}{'false':>6}  false ones (bearing/km: error deg, cost ratio)")
+        n_reg = n_false = 0
+        errs = []
+        for name, t, _ in photos:
+            reg, false = 0, []
+            for ((pn, _, _), b, dist, _, _), r in zip(probes, out):
+                if pn != name:
+                    continue
+                if r.get("status") == "error":
+                    errs.append((name, b, dist, r.get("message")))
+                if r.get("status") != "registered":
+                    continue
+                reg += 1
+                e = errors(r, t)
+                err = max(abs(e["daz"]), abs(e["dp"])) if e else float("inf")
+                if err > 1.0:
+                    false.append(f"{b}/{dist // 1000}: {err:.1f}, {r.get('ambiguity_ratio')}")
+            n_reg += reg
+            n_false += len(false)
+            print(f"{name:<24}{reg:>11}{len(false):>6}  " + "; ".join(false))
+        print(f"ring probes: {len(probes)}; registered: {n_reg} (none should); false (> 1 deg): {n_false}; "
+              f"errors: {len(errs)}")
+        for n, b, dist, m in errs:
+            print(f"  error: {n} from {dist / 1000:.0f} km at {b}: {m}")
+        if check and (n_false > floors["ring"] or errs):
+            print(f"FAIL: {n_false} false registrations from the ring of wrong positions (at most "
+                  f"{floors['ring']:.0f}) or errors")
             failed = True
     if "perturbed" in modes:
         def wrong_probes(p):
