@@ -6,7 +6,7 @@ set -euo pipefail
 packages=(
   build-essential cmake pkg-config file python3 bc
   libgdal-dev gdal-bin libopencv-dev libeigen3-dev libceres-dev libgeographiclib-dev
-  libcli11-dev nlohmann-json3-dev libexiv2-dev libgtest-dev libgmock-dev libbenchmark-dev
+  libcli11-dev nlohmann-json3-dev libexiv2-dev liblensfun-dev liblensfun-data-v1 libgtest-dev libgmock-dev libbenchmark-dev
   python-matplotlib-data   # the demo's DEM: jacksboro_fault_dem.npz
   pybind11-dev python3-dev python3-numpy   # the Python module
 )

@@ -53,6 +53,7 @@ struct RegisterArgs {
   double step = 0.1;  // finer than `horizon`'s default: each bin holds its maximum, 0.25 deg bins bias pitch
   bool no_exif = false;
   bool refine_position = false;  // --refine-position
+  bool trust_position = false;   // --trust-position: no position-consistency check
   bool pinhole = false;
   double max_image_mpx = 250.0, max_dem_mb = 2048.0;
 };

@@ -45,6 +45,9 @@ void AddRegisterCommand(CLI::App& app, RegisterArgs& a) {
   c->add_flag("--refine-position", a.refine_position,
               "Also estimate the latitude, longitude and eye height within the position's prior (eye height 10 m, "
               "an EXIF altitude 20 m); the JSON gains a \"position\" block (DESIGN.md)");
+  c->add_flag("--trust-position", a.trust_position,
+              "Skip the check that the skyline does not fit clearly better from elsewhere (a wrong position); "
+              "saves its time for a surveyed camera");
   auto* hfov = c->add_option("--hfov", a.hfov, "Known horizontal opening angle, degrees (searched within +-3%)");
   auto* range =
       c->add_option("--hfov-range", a.hfov_range, "Opening angles to search, MIN:MAX degrees (default 10:120)");
@@ -88,6 +91,7 @@ int RunRegister(const RegisterArgs& a) {
   po.hfov_deg = a.hfov;
   if (!a.hfov_range.empty()) po.hfov_range_deg = ParseHfovRange(a.hfov_range);
   po.pinhole = a.pinhole;
+  if (a.trust_position) po.check_position.reset();
   if (!a.camera.empty()) po.camera = ReadCameraFile(a.camera, image.cols, image.rows);
   if (!a.initial.empty()) po.initial = ParseInitialPose(a.initial);
   if (!a.skyline.empty()) po.skyline = ReadSkylineJson(a.skyline, image.cols, image.rows);

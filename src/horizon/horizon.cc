@@ -20,6 +20,15 @@ using internal::SweepSetup;
 class HorizonAccumulator {
  public:
   explicit HorizonAccumulator(const SweepSetup& setup) : setup_(&setup), best_(setup.num_sectors) {}
+  // Bins outside the sector are never raised (and tiles seen only in them
+  // are culled): their maxima start at +infinity.
+  HorizonAccumulator(const SweepSetup& setup, double center_deg, double half_width_deg) : HorizonAccumulator(setup) {
+    if (!(half_width_deg < 180.0)) return;
+    const double step_deg = 360.0 / setup.num_sectors;
+    for (int i = 0; i < setup.num_sectors; ++i)
+      if (std::abs(std::remainder(i * step_deg - center_deg, 360.0)) > half_width_deg)
+        best_[i].tan_el = std::numeric_limits<double>::infinity();
+  }
 
   void Post(const SweepPoint& p) { Update(p.sector, p); }
 
@@ -210,6 +219,10 @@ void HorizonOptions::Check() const {
     ThrowField("HorizonOptions::min_distance_m", min_distance_m, "0 <= min_distance_m < max_distance_m");
   if (!(refraction >= -1.0 && refraction <= 1.0)) ThrowField("HorizonOptions::refraction", refraction, "-1 <= k <= 1");
   if (num_threads < 1 || num_threads > 256) ThrowField("HorizonOptions::num_threads", num_threads, "1..256");
+  if (!std::isfinite(sector_center_deg))
+    ThrowField("HorizonOptions::sector_center_deg", sector_center_deg, "finite");
+  if (!(sector_half_width_deg > 0.0 && sector_half_width_deg <= 180.0))
+    ThrowField("HorizonOptions::sector_half_width_deg", sector_half_width_deg, "0 < half width <= 180");
 }
 
 int HorizonOptions::NumBins() const { return static_cast<int>(std::lround(360.0 / azimuth_step_deg)); }
@@ -257,7 +270,10 @@ HorizonProfile ComputeHorizon(const TerrainWindow& terrain, const GeodeticPoint&
   const SweepSetup setup =
       internal::MakeSweepSetup(n, 0.5, options.min_distance_m, options.max_distance_m, options.refraction);
   auto accs = internal::SweepGrids<HorizonAccumulator>(terrain.grids, frame, setup, options.pool, options.num_threads,
-                                                       [&] { return HorizonAccumulator(setup); });
+                                                       [&] {
+                                                         return HorizonAccumulator(setup, options.sector_center_deg,
+                                                                                   options.sector_half_width_deg);
+                                                       });
   for (size_t i = 1; i < accs.size(); ++i) accs[0].MergeFrom(accs[i]);
 
   HorizonProfile out;

@@ -19,6 +19,12 @@ struct HorizonOptions {
   double refraction = kDefaultRefraction;  // k of the lift k d^2 / (2 R); 0 = pure geometry, in [-1, 1].
   int num_threads = 2;                     // Threads for the post/edge pass, >= 1 (when no pool is given).
   ThreadPool* pool = nullptr;              // A shared pool to run on instead (then num_threads is unused).
+  // Only the bins whose centres lie within sector_half_width_deg of
+  // sector_center_deg are computed (the others are NaN; terrain seen only
+  // there is culled): a view's horizon at a fraction of the cost.
+  // ComputeHorizon only; 180 = the whole circle.
+  double sector_center_deg = 0.0;
+  double sector_half_width_deg = 180.0;
   void Check() const;                      // Throws InvalidArgument naming the field.
   int NumBins() const;
 };

@@ -172,6 +172,40 @@ TEST(ComputeHorizon, ThreadCountDoesNotChangeTheResult) {
     }
 }
 
+TEST(ComputeHorizon, SectorGivesTheSameBinsInsideAndNaNOutside) {
+  DemGrid g = SynthesizeDem(45.3, 6.7, 0.002, 301, 301, ConeHeight(45.1, 7.1, 200.0, 1500.0, 9000.0));
+  TerrainWindow w = WindowOf(std::move(g));
+  HorizonOptions full;
+  full.num_threads = 1;
+  const HorizonProfile a = ComputeHorizon(w, {45.0, 7.0, 210.0}, full);
+  // Around the cone (north-east), and a sector across north.
+  for (const auto& [center, half] : {std::pair{35.0, 25.0}, std::pair{350.0, 30.0}}) {
+    HorizonOptions sector = full;
+    sector.sector_center_deg = center;
+    sector.sector_half_width_deg = half;
+    const HorizonProfile b = ComputeHorizon(w, {45.0, 7.0, 210.0}, sector);
+    ASSERT_EQ(a.size(), b.size());
+    int inside = 0;
+    for (int i = 0; i < a.size(); ++i) {
+      if (std::abs(std::remainder(a.AzimuthDeg(i) - center, 360.0)) <= half) {
+        ++inside;
+        EXPECT_EQ(a.elevation_deg[i], b.elevation_deg[i]) << "bin " << i;
+        if (std::isfinite(a.distance_m[i])) {
+          EXPECT_EQ(a.distance_m[i], b.distance_m[i]) << "bin " << i;
+        }
+      } else {
+        EXPECT_TRUE(std::isnan(b.elevation_deg[i])) << "bin " << i;
+      }
+    }
+    EXPECT_NEAR(inside, 2 * half / a.azimuth_step_deg + 1, 1);
+  }
+  HorizonOptions bad;
+  bad.sector_half_width_deg = 0.0;
+  EXPECT_THROW(bad.Check(), InvalidArgument);
+  bad.sector_half_width_deg = 181.0;
+  EXPECT_THROW(bad.Check(), InvalidArgument);
+}
+
 TEST(ComputeRidges, FindsANearRidgeInFrontOfAHigherFarOne) {
   // Looking north: a 400 m ridge at 5 km, a 4500 m massif at 40 km.
   auto near_ridge = ConeHeight(45.045, 7.0, 0.0, 400.0, 1500.0);

@@ -584,7 +584,7 @@ Registration Register(const Skyline& skyline, const HorizonProfile& horizon, con
   size_t refined_upto = std::min(pool.size(), static_cast<size_t>(options.refined_candidates));
   refine_pool(0, refined_upto);
   rank();
-  while (!second_candidate && refined_upto < kMaxRefined) {
+  while (!second_candidate && refined_upto < kMaxRefined && !options.search_only) {
     if (refined_upto >= pool.size()) extend_pool(options.refined_candidates);
     if (refined_upto >= pool.size()) break;  // no more distinct hypotheses
     const size_t to = std::min({pool.size(), refined_upto + static_cast<size_t>(options.refined_candidates), kMaxRefined});
@@ -598,6 +598,10 @@ Registration Register(const Skyline& skyline, const HorizonProfile& horizon, con
   }
   auto reported = [](const Candidate& c) { return PoseCandidate{c.pose.ToPose(), c.pose.f, c.cost, c.inliers}; };
   for (size_t i : order) out.candidates.push_back(reported(refined[i]));
+  if (options.search_only) {
+    out.message = "search only";
+    return out;
+  }
   const Candidate& best = refined[order[0]];
   // The DEM's flattening as the best pose shows it; the best and its
   // alternative are then judged alike under it (a view rendered from the

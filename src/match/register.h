@@ -100,6 +100,11 @@ struct RegistrationOptions {
   // terrain, a zoomed-in view) are weak evidence however well they fit.
   double min_evidence_nats = 40.0;
   SensorPrior prior;
+  // Search only: rank the refined candidates and return them (no search for
+  // a distinct rival, no final fit, registered stays false). For comparing
+  // the best cost of one skyline over horizons from several places
+  // (pipeline/position_check.h).
+  bool search_only = false;
   void Check() const;  // Throws InvalidArgument naming the field.
 };
 

@@ -87,6 +87,7 @@ void PhotoOptions::Check() const {
   if (refine_position && position_sigma_m && !(*position_sigma_m > 0.0))
     ThrowField("position_sigma_m", *position_sigma_m, "> 0 with refine_position");
   if (refine_position) refine_position->Check();
+  if (check_position) check_position->Check();
   registration.Check();
 }
 
@@ -109,7 +110,7 @@ std::string PhotoHfovWindow(const PhotoOptions& po, int width, int height, doubl
   if (po.exif.focal_35mm) {
     const double h = HfovFromFocal35mm(*po.exif.focal_35mm, width, height);
     min_deg = std::max(1.0, h * 0.9), max_deg = std::min(169.0, h * 1.1);
-    return "exif";
+    return po.exif.focal_35mm_from_crop_factor ? "exif-crop-factor" : "exif";
   }
   return "default";
 }
@@ -193,6 +194,14 @@ PhotoRegistration RegisterPhoto(const Site& site, const cv::Mat& image_in, const
                      50.0);
   }
   if (po.refine_position) RefinePhotoPosition(site, image, *po.refine_position, ro, out, pool);
+  if (po.check_position && r.registered) {
+    out.position_check =
+        CheckPositionConsistency(site, out.Horizon(site), out.skyline, r, ro, *po.check_position, pool);
+    if (!out.position_check->consistent) {
+      r.registered = false;
+      r.message = out.position_check->message;
+    }
+  }
   out.match_ms = MsSince(t0);
   return out;
 }

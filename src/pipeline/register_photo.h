@@ -14,6 +14,7 @@
 #include "camera/camera.h"
 #include "match/register.h"
 #include "pipeline/position.h"
+#include "pipeline/position_check.h"
 #include "pipeline/site.h"
 #include "sensors/sensors.h"
 #include "skyline/skyline.h"
@@ -61,6 +62,9 @@ struct PhotoOptions {
   // Refine the position too (pipeline/position.h), within this prior
   // (DefaultPositionOptions); the registration is then made at the estimate.
   std::optional<PositionOptions> refine_position;
+  // Refuse a registration that fits clearly better from somewhere else
+  // (pipeline/position_check.h); nullopt to trust the position blindly.
+  std::optional<PositionCheckOptions> check_position = PositionCheckOptions{};
   RegistrationOptions registration;        // thresholds; priors, opening angles and intrinsics are set from the above
   void Check() const;                      // Throws InvalidArgument naming the field.
 };
@@ -69,7 +73,7 @@ struct PhotoRegistration {
   Registration registration;
   Skyline skyline;
   RegistrationOptions options;  // as used: priors, opening-angle window
-  std::string fov_source;       // "--hfov", "--hfov-range", "exif" or "default"
+  std::string fov_source;       // "--hfov", "--hfov-range", "exif", "exif-crop-factor" or "default"
   int width = 0, height = 0;
   double skyline_ms = 0.0, match_ms = 0.0;
   // With PhotoOptions::refine_position: the position estimate (its horizon
@@ -77,6 +81,9 @@ struct PhotoRegistration {
   // in match_ms.
   std::optional<PositionEstimate> position;
   double position_ms = 0.0;
+  // With PhotoOptions::check_position and a registration to check: the
+  // check (its time included in match_ms).
+  std::optional<PositionCheck> position_check;
   // The horizon the registration was made at: the refined position's, else the site's.
   const HorizonProfile& Horizon(const Site& site) const { return position ? position->horizon : site.horizon(); }
 };
@@ -86,7 +93,8 @@ SkylineOptions PhotoSkylineOptions(const PhotoOptions& options);
 // The opening angles searched for a width x height photo: --hfov +-3%, the
 // --hfov-range, EXIF's 35 mm focal length +-10%, else min_deg / max_deg are
 // left as they are (the default range). Returns the source: "--hfov",
-// "--hfov-range", "exif" or "default".
+// "--hfov-range", "exif" ("exif-crop-factor" when the 35 mm value is the
+// lens's focal length times the body's crop factor) or "default".
 std::string PhotoHfovWindow(const PhotoOptions& options, int width, int height, double& min_deg, double& max_deg);
 // The registration options for a width x height photo at `site`.
 RegistrationOptions PhotoRegistrationOptions(const Site& site, const PhotoOptions& options, int width, int height,

@@ -157,6 +157,50 @@ TEST(RegisterPhoto, RegistersARenderedViewAndReportsIt) {
   EXPECT_THROW(RegisterPhoto(site, cv::Mat(4, 4, CV_8UC3), {}), InvalidArgument);
 }
 
+TEST(PositionCheck, PassesTheTruePositionAndRefusesOneTwoKilometresOff) {
+  testing::ConeRing ring = testing::MakeConeRing();
+  ThreadPool pool(2);
+  const Site site(ring.window, 46.0, 8.0, RingSiteOptions(), &pool);
+  RenderOptions ro;
+  ro.max_distance_m = 30'000.0;
+  const auto k = CameraIntrinsics::FromHfov(480, 320, 50.0);
+  const CameraPose truth{40.0, 1.5, -0.8};
+  const cv::Mat photo = RenderView(ring.window, ring.eye, truth, k, ro);
+  PhotoOptions po;
+  po.pinhole = true;
+  const PhotoRegistration r = RegisterPhoto(site, photo, po, &pool);
+  ASSERT_TRUE(r.registration.registered) << r.registration.message;
+  ASSERT_TRUE(r.position_check.has_value());
+  EXPECT_TRUE(r.position_check->consistent);
+  EXPECT_GE(r.position_check->cost_ratio, 0.95);
+  EXPECT_GE(r.position_check->horizons, 17);  // the given place and two rings of 8
+  EXPECT_EQ(RegistrationReport(site, r, "arguments", 1.0)["position_check"]["consistent"], true);
+  // Trusted: no check.
+  po.check_position.reset();
+  EXPECT_FALSE(RegisterPhoto(site, photo, po, &pool).position_check.has_value());
+
+  // The same skyline and pose judged from 2 km east of the truth: a place
+  // towards the truth fits clearly better.
+  const GeodeticPoint east = LocalFrame(site.observer()).GeodeticFromEnu(Eigen::Vector3d(2000.0, 0.0, 0.0));
+  const Site wrong(ring.window, east.lat_deg, east.lon_deg, RingSiteOptions(), &pool);
+  RegistrationOptions options = r.options;
+  const PositionCheck c = CheckPositionConsistency(wrong, wrong.horizon(), r.skyline, r.registration, options,
+                                                   PositionCheckOptions{}, &pool);
+  EXPECT_FALSE(c.consistent);
+  EXPECT_LT(c.cost_ratio, 0.9);
+  EXPECT_GE(c.OffsetM(), 500.0);
+  EXPECT_NEAR(AngDiffDeg(c.BearingDeg(), 270.0), 0.0, 50.0);
+  EXPECT_NE(c.message.find("position"), std::string::npos);
+  // Without a pool: the same answer.
+  const PositionCheck serial = CheckPositionConsistency(wrong, wrong.horizon(), r.skyline, r.registration, options,
+                                                        PositionCheckOptions{}, nullptr);
+  EXPECT_EQ(serial.consistent, c.consistent);
+  EXPECT_DOUBLE_EQ(serial.cost_ratio, c.cost_ratio);
+  PositionCheckOptions bad;
+  bad.max_cost_ratio = 1.0;
+  EXPECT_THROW(bad.Check(), InvalidArgument);
+}
+
 // The cone ring as a flat-coloured photo whose skyline
 // extraction missed a snow field: in the left 30% of the columns the extracted
 // boundary lies 25 px low, at the snow's lower edge.

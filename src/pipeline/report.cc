@@ -137,6 +137,17 @@ nlohmann::json RegistrationReport(const Site& site, const PhotoRegistration& pho
                      {"message", e.message}};
     j["timing_ms"]["position"] = Rounded(photo.position_ms, 1);
   }
+  if (photo.position_check) {
+    // Whether the skyline fits clearly better from elsewhere (a wrong
+    // position): the best place the check found and its cost ratio.
+    const PositionCheck& c = *photo.position_check;
+    j["position_check"] = {{"consistent", c.consistent},
+                           {"cost_ratio", Rounded(c.cost_ratio, 3)},
+                           {"best_offset_m", Rounded(c.OffsetM(), 0)},
+                           {"best_bearing_deg", c.OffsetM() > 0.0 ? Rounded(c.BearingDeg(), 1) : nullptr},
+                           {"horizons", c.horizons}};
+    j["timing_ms"]["position_check"] = Rounded(c.ms, 1);
+  }
   return j;
 }
 

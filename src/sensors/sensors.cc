@@ -13,6 +13,7 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "sensors/camera_db.h"
 #include "util/angles.h"
 #include "util/errors.h"
 #include "util/json.h"
@@ -108,7 +109,18 @@ SensorReading ReadExif(const std::string& image_path) {
     if (dir && std::isfinite(*dir) && (!dir_ref || dir_ref->empty() || (*dir_ref)[0] == 'T'))
       r.compass_deg = WrapAzimuthDeg(*dir);
     const auto f35 = exif.findKey(Exiv2::ExifKey("Exif.Photo.FocalLengthIn35mmFilm"));
-    if (f35 != exif.end() && f35->count() > 0 && f35->toLong() > 0) r.focal_35mm = static_cast<double>(f35->toLong());
+    if (f35 != exif.end() && f35->count() > 0 && f35->toLong() > 0) {
+      r.focal_35mm = static_cast<double>(f35->toLong());
+    } else if (const auto f = Rational(exif, "Exif.Photo.FocalLength"); f && *f > 0.0 && *f < 5000.0) {
+      // No 35 mm equivalent (Canon bodies write none): the lens's focal
+      // length times the body's crop factor.
+      const auto make = Text(exif, "Exif.Image.Make"), model = Text(exif, "Exif.Image.Model");
+      if (make && model)
+        if (const auto crop = CameraCropFactor(Trim(*make), Trim(*model))) {
+          r.focal_35mm = *f * *crop;
+          r.focal_35mm_from_crop_factor = true;
+        }
+    }
   } catch (const Exiv2::Error&) {
     return SensorReading{};  // no usable metadata: the caller decides what is missing
   }

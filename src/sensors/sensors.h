@@ -17,7 +17,10 @@ struct SensorReading {
   std::optional<double> lat_deg, lon_deg;
   std::optional<double> alt_m;       // GPS altitude above mean sea level, metres
   std::optional<double> agl_m;       // height above ground, metres
-  std::optional<double> focal_35mm;  // EXIF FocalLengthIn35mmFilm, millimetres
+  std::optional<double> focal_35mm;  // EXIF FocalLengthIn35mmFilm, millimetres (or as below)
+  // Set when focal_35mm is EXIF FocalLength times the body's crop factor
+  // (camera_db.h), the photo giving no 35 mm equivalent of its own.
+  bool focal_35mm_from_crop_factor = false;
 };
 
 // Parses one reading from JSON text: fields compass_yaw_deg,
@@ -31,7 +34,9 @@ SensorReading ReadSensorJson(const std::string& path);
 
 // What the photo's EXIF says (exiv2): GPS position and altitude,
 // GPSImgDirection as the compass (only when its reference is true north, 'T',
-// or absent), FocalLengthIn35mmFilm. Fields the photo lacks stay empty; a
+// or absent), FocalLengthIn35mmFilm (else FocalLength times the crop factor
+// of the body its Make and Model name, when lensfun knows it). Fields the
+// photo lacks stay empty; a
 // photo without EXIF gives an empty reading. Never throws for missing or
 // malformed metadata. Thread-safe.
 SensorReading ReadExif(const std::string& image_path);

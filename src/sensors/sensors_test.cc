@@ -7,7 +7,9 @@
 #include <filesystem>
 #include <fstream>
 #include <opencv2/imgcodecs.hpp>
+#include <thread>
 
+#include "sensors/camera_db.h"
 #include "util/angles.h"
 #include "util/errors.h"
 
@@ -63,6 +65,67 @@ TEST(ReadExif, GpsDirectionAndFocalRoundTrip) {
   EXPECT_NEAR(*r.alt_m, 2105.9, 1e-9);
   EXPECT_NEAR(*r.compass_deg, 173.25, 1e-9);
   EXPECT_NEAR(*r.focal_35mm, 50.0, 1e-12);
+}
+
+// A photo with Make, Model and FocalLength (and optionally a 35 mm value).
+SensorReading ExifOfBody(const std::string& tag, const std::string& make, const std::string& model,
+                         Exiv2::Rational focal, int focal_35mm) {
+  const auto path = std::filesystem::temp_directory_path() / ("horizonreg_exif_body_" + tag + ".jpg");
+  cv::imwrite(path.string(), cv::Mat(32, 48, CV_8UC3, cv::Scalar(200, 150, 100)));
+  {
+    auto image = Exiv2::ImageFactory::open(path.string());
+    image->readMetadata();
+    Exiv2::ExifData& exif = image->exifData();
+    exif["Exif.Image.Make"] = make;
+    exif["Exif.Image.Model"] = model;
+    exif["Exif.Photo.FocalLength"] = focal;
+    if (focal_35mm > 0) exif["Exif.Photo.FocalLengthIn35mmFilm"] = uint16_t(focal_35mm);
+    image->writeMetadata();
+  }
+  const SensorReading r = ReadExif(path.string());
+  std::filesystem::remove(path);
+  return r;
+}
+
+TEST(CameraCropFactor, KnownBodiesFromLensfun) {
+  // APS-C Canon (22.2 x 14.8 mm), DX Nikon, full frame.
+  const auto canon = CameraCropFactor("Canon", "Canon EOS 40D");
+  ASSERT_TRUE(canon.has_value());
+  EXPECT_NEAR(*canon, 1.62, 0.01);
+  const auto nikon = CameraCropFactor("NIKON CORPORATION", "NIKON D200");
+  ASSERT_TRUE(nikon.has_value());
+  EXPECT_NEAR(*nikon, 1.52, 0.02);
+  const auto ff = CameraCropFactor("Canon", "Canon EOS 5D Mark II");
+  ASSERT_TRUE(ff.has_value());
+  EXPECT_NEAR(*ff, 1.0, 0.01);
+  EXPECT_FALSE(CameraCropFactor("Nobody", "No Such Camera 9000").has_value());
+  EXPECT_FALSE(CameraCropFactor("", "Canon EOS 40D").has_value());
+  EXPECT_FALSE(CameraCropFactor("Canon", "").has_value());
+}
+
+TEST(CameraCropFactor, ConcurrentLookupsAgree) {
+  std::vector<std::thread> threads;
+  std::vector<double> got(8, 0.0);
+  for (int i = 0; i < 8; ++i)
+    threads.emplace_back([&, i] { got[i] = CameraCropFactor("Canon", i % 2 ? "Canon EOS 40D" : "Canon EOS 7D").value_or(0.0); });
+  for (auto& t : threads) t.join();
+  for (int i = 0; i < 8; ++i) EXPECT_NEAR(got[i], 1.6, 0.03) << i;
+}
+
+TEST(ReadExif, FocalLengthTimesTheBodysCropFactorWhenNo35mmValue) {
+  const SensorReading canon = ExifOfBody("canon", "Canon", "Canon EOS 40D", Exiv2::Rational(24, 1), 0);
+  ASSERT_TRUE(canon.focal_35mm.has_value());
+  EXPECT_TRUE(canon.focal_35mm_from_crop_factor);
+  EXPECT_NEAR(*canon.focal_35mm, 24.0 * 1.62, 0.3);
+  // The photo's own 35 mm value wins.
+  const SensorReading nikon = ExifOfBody("nikon", "NIKON CORPORATION", "NIKON D200", Exiv2::Rational(18, 1), 27);
+  ASSERT_TRUE(nikon.focal_35mm.has_value());
+  EXPECT_FALSE(nikon.focal_35mm_from_crop_factor);
+  EXPECT_DOUBLE_EQ(*nikon.focal_35mm, 27.0);
+  // A body nobody knows: no opening angle rather than a guess.
+  const SensorReading unknown = ExifOfBody("unknown", "Nobody", "No Such Camera 9000", Exiv2::Rational(24, 1), 0);
+  EXPECT_FALSE(unknown.focal_35mm.has_value());
+  EXPECT_FALSE(unknown.focal_35mm_from_crop_factor);
 }
 
 TEST(ReadExif, NoMetadataOrNotAnImageGivesAnEmptyReading) {

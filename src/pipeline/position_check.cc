@@ -1,0 +1,201 @@
+// SPDX-License-Identifier: MIT
+#include "pipeline/position_check.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <iomanip>
+#include <optional>
+#include <sstream>
+#include <vector>
+
+#include "match/fit.h"
+#include "util/angles.h"
+#include "util/errors.h"
+
+namespace horizonreg {
+
+void PositionCheckOptions::Check() const {
+  if (!(first_step_m > 0.0)) ThrowField("PositionCheckOptions::first_step_m", first_step_m, "> 0");
+  if (!(far_ring_m >= 0.0)) ThrowField("PositionCheckOptions::far_ring_m", far_ring_m, ">= 0 (0: none)");
+  if (!(min_step_m > 0.0 && min_step_m <= first_step_m))
+    ThrowField("PositionCheckOptions::min_step_m", min_step_m, "0 < min_step_m <= first_step_m");
+  if (directions < 3 || directions > 64) ThrowField("PositionCheckOptions::directions", directions, "3..64");
+  if (!(max_offset_m >= first_step_m)) ThrowField("PositionCheckOptions::max_offset_m", max_offset_m, ">= first_step_m");
+  if (max_horizons < directions) ThrowField("PositionCheckOptions::max_horizons", max_horizons, ">= directions");
+  if (!(max_cost_ratio > 0.0 && max_cost_ratio < 1.0))
+    ThrowField("PositionCheckOptions::max_cost_ratio", max_cost_ratio, "0 < ratio < 1");
+  if (!(min_offset_m >= 0.0)) ThrowField("PositionCheckOptions::min_offset_m", min_offset_m, ">= 0");
+  if (!(view_margin_deg >= 0.0 && view_margin_deg <= 180.0))
+    ThrowField("PositionCheckOptions::view_margin_deg", view_margin_deg, "in [0, 180]");
+}
+
+double PositionCheck::BearingDeg() const {
+  return WrapAzimuthDeg(RadToDeg(std::atan2(best_offset_en_m.x(), best_offset_en_m.y())));
+}
+
+namespace {
+
+// A move must lower the cost by this share to be taken (not rounding noise).
+constexpr double kMinGain = 1e-3;
+
+// Outside the computed sector the horizon is held at the sector's edge
+// values: no extrema (no hypotheses) there, and a pose driven outside fits
+// a flat line, not NaN.
+void HoldSectorEdges(HorizonProfile& h) {
+  const int n = h.size();
+  int first = -1;
+  for (int i = 0; i < n; ++i)
+    if (std::isfinite(h.elevation_deg[i]) && !std::isfinite(h.elevation_deg[(i + n - 1) % n])) first = i;
+  if (first < 0) {  // all finite, or none
+    for (double& e : h.elevation_deg)
+      if (!std::isfinite(e)) e = -90.0;
+    return;
+  }
+  // Walk once around from a run's start, carrying the last finite value
+  // forward over each gap's first half and the next run's first value back
+  // over its second half.
+  for (int k = 0; k < n;) {
+    const int i = (first + k) % n;
+    if (std::isfinite(h.elevation_deg[i])) {
+      ++k;
+      continue;
+    }
+    int len = 0;
+    while (len < n && !std::isfinite(h.elevation_deg[(i + len) % n])) ++len;
+    const double before = h.elevation_deg[(i + n - 1) % n], after = h.elevation_deg[(i + len) % n];
+    for (int j = 0; j < len; ++j) h.elevation_deg[(i + j) % n] = j < len / 2 ? before : after;
+    k += len;
+  }
+}
+
+}  // namespace
+
+PositionCheck CheckPositionConsistency(const Site& site, const HorizonProfile& horizon, const Skyline& skyline,
+                                       const Registration& reg, const RegistrationOptions& options,
+                                       const PositionCheckOptions& co, ThreadPool* pool) {
+  co.Check();
+  const auto t0 = std::chrono::steady_clock::now();
+  PositionCheck out;
+  auto finish = [&] {
+    out.ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    return out;
+  };
+  if (!(reg.focal_px > 0.0) || horizon.size() < 8) return finish();
+
+  // The view's sector (the opening angle's half and a margin each side),
+  // and horizons as far as the view's own reaches (+30%, +3 km).
+  const double half_view = std::min(180.0, 0.5 * HfovFromFocalDeg(reg.focal_px, skyline.width) + co.view_margin_deg);
+  double view_distance = 0.0;
+  for (int i = 0; i < horizon.size(); ++i)
+    if (std::abs(AngDiffDeg(horizon.AzimuthDeg(i), reg.pose.azimuth_deg)) <= half_view &&
+        std::isfinite(horizon.distance_m[i]))
+      view_distance = std::max(view_distance, horizon.distance_m[i]);
+  HorizonOptions ho = site.horizon_options();
+  ho.azimuth_step_deg = horizon.azimuth_step_deg;
+  ho.max_distance_m = std::min(ho.max_distance_m, 1.3 * view_distance + 3000.0);
+  ho.num_threads = 1;
+  ho.pool = nullptr;
+  ho.sector_center_deg = reg.pose.azimuth_deg;
+  ho.sector_half_width_deg = half_view;
+  if (!(ho.max_distance_m > ho.min_distance_m)) return finish();
+  // Each place searched as the photo was (its opening angles and priors),
+  // one thread per place.
+  RegistrationOptions ro = options;
+  ro.pool = nullptr;
+  ro.num_threads = 1;
+  ro.search_only = true;
+  // Under the DEM's flattening as the registration measured it (a view
+  // rendered from the DEM itself is held to it tightly; a photo over a
+  // coarse DEM keeps its tolerance): the tolerance of the model as given
+  // let a rendered view fit 19% better from 1 km away (rainier_00), the
+  // measured one 9%.
+  if (std::isfinite(reg.dem.flattening_scale))
+    ro.dem_error = match_detail::ScaledModel(ro.dem_error, reg.dem.flattening_scale);
+
+  const LocalFrame frame(horizon.observer);
+  const bool altitude_given = site.options().alt_m.has_value();
+  const double given_eye = horizon.observer.height_m;
+  const double given_agl =
+      std::isfinite(horizon.ground_height_m) ? std::max(0.1, given_eye - horizon.ground_height_m) : kDefaultEyeHeightM;
+
+  struct Place {
+    Eigen::Vector2d en{0.0, 0.0};
+    double cost = INFINITY;
+    double azimuth_deg = NAN;
+  };
+  // The best pose's cost at each place (the search's, under the DEM error
+  // model as given: comparable between places).
+  auto fit = [&](Place& p) {
+    GeodeticPoint g = frame.GeodeticFromEnu(Eigen::Vector3d(p.en.x(), p.en.y(), 0.0));
+    const std::optional<double> ground = site.window().HeightAt(g.lat_deg, g.lon_deg);
+    if (!ground) return;
+    g.height_m = altitude_given ? std::max(given_eye, *ground + kDefaultEyeHeightM) : *ground + given_agl;
+    if (p.en.isZero()) g.height_m = given_eye;
+    HorizonProfile h = ComputeHorizon(site.window(), g, ho);
+    HoldSectorEdges(h);
+    const Registration r = Register(skyline, h, ro);
+    if (r.candidates.empty()) return;
+    p.cost = r.candidates[0].cost;
+    p.azimuth_deg = r.candidates[0].pose.azimuth_deg;
+  };
+  auto fit_all = [&](std::vector<Place>& places) {
+    auto one = [&](size_t i, int) { fit(places[i]); };
+    if (pool)
+      pool->ParallelFor(places.size(), one);
+    else
+      for (size_t i = 0; i < places.size(); ++i) one(i, 0);
+    out.horizons += static_cast<int>(places.size());
+  };
+  auto ring = [&](const Eigen::Vector2d& from, double radius, std::vector<Place>& places) {
+    for (int k = 0; k < co.directions; ++k) {
+      const double a = 2.0 * kPi * k / co.directions;
+      const Eigen::Vector2d en = from + radius * Eigen::Vector2d(std::sin(a), std::cos(a));
+      if (en.norm() <= co.max_offset_m) places.push_back({en});
+    }
+  };
+
+  // The given position (searched on the same sector) and the first rings.
+  std::vector<Place> places{Place{}};
+  ring(Eigen::Vector2d::Zero(), co.first_step_m, places);
+  if (co.far_ring_m > co.first_step_m) ring(Eigen::Vector2d::Zero(), co.far_ring_m, places);
+  fit_all(places);
+  const Place given = places[0];
+  if (!std::isfinite(given.cost) || !(given.cost > 0.0)) return finish();
+  Place center = given;
+  places.erase(places.begin());
+  auto refused = [&] { return center.cost < co.max_cost_ratio * given.cost && center.en.norm() >= co.min_offset_m; };
+  double step = co.first_step_m;
+  while (!refused()) {
+    const Place* best = nullptr;
+    for (const Place& p : places)
+      if (std::isfinite(p.cost) && (!best || p.cost < best->cost)) best = &p;
+    if (best && best->cost < (1.0 - kMinGain) * center.cost) {
+      center = *best;
+    } else {
+      // Finer steps only where the cost fell somewhere: a given position
+      // that no place of the first rings beats is where the bowl's bottom
+      // lies (to within the first step).
+      step *= 0.5;
+      if (center.en.isZero() || step < co.min_step_m * (1.0 - 1e-9)) break;
+    }
+    places.clear();
+    ring(center.en, step, places);
+    if (places.empty() || out.horizons + static_cast<int>(places.size()) > co.max_horizons) break;
+    fit_all(places);
+  }
+  out.cost_ratio = center.cost / given.cost;
+  out.best_offset_en_m = center.en;
+  out.best_azimuth_deg = center.azimuth_deg;
+  if (refused()) {
+    out.consistent = false;
+    std::ostringstream m;
+    m << std::fixed << std::setprecision(1) << "the skyline fits clearly better from " << out.OffsetM() / 1000.0
+      << " km away at bearing " << std::setprecision(0) << out.BearingDeg() << " deg (cost ratio "
+      << std::setprecision(2) << out.cost_ratio << "): the given camera position looks wrong";
+    out.message = m.str();
+  }
+  return finish();
+}
+
+}  // namespace horizonreg
