@@ -120,15 +120,26 @@ TEST(PhotoRegistrationOptions, OpeningAngleWindowAndErrorModelBySource) {
   EXPECT_THROW(PhotoRegistrationOptions(site, po, 600, 400), InvalidArgument);  // both
 }
 
-TEST(RegisterPhoto, RegistersARenderedViewAndReportsIt) {
+// A view of the cone ring rendered from its centre, as a photo.
+struct RenderedRing {
   testing::ConeRing ring = testing::MakeConeRing();
-  ThreadPool pool(2);
-  const Site site(ring.window, 46.0, 8.0, RingSiteOptions(), &pool);
-  RenderOptions ro;
-  ro.max_distance_m = 30'000.0;
-  const auto k = CameraIntrinsics::FromHfov(480, 320, 50.0);
-  const CameraPose truth{40.0, 1.5, -0.8};
-  const cv::Mat photo = RenderView(ring.window, ring.eye, truth, k, ro);
+  ThreadPool pool{2};
+  Site site{ring.window, 46.0, 8.0, RingSiteOptions(), &pool};
+  CameraPose truth{40.0, 1.5, -0.8};
+  cv::Mat photo = Render();
+  cv::Mat Render() const {
+    RenderOptions ro;
+    ro.max_distance_m = 30'000.0;
+    return RenderView(ring.window, ring.eye, truth, CameraIntrinsics::FromHfov(480, 320, 50.0), ro);
+  }
+};
+
+TEST(RegisterPhoto, RegistersARenderedViewAndReportsIt) {
+  RenderedRing scene;
+  const Site& site = scene.site;
+  const CameraPose truth = scene.truth;
+  const cv::Mat& photo = scene.photo;
+  ThreadPool& pool = scene.pool;
   PhotoOptions po;
   po.pinhole = true;
   const PhotoRegistration r = RegisterPhoto(site, photo, po, &pool);
@@ -158,14 +169,11 @@ TEST(RegisterPhoto, RegistersARenderedViewAndReportsIt) {
 }
 
 TEST(PositionCheck, PassesTheTruePositionAndRefusesOneTwoKilometresOff) {
-  testing::ConeRing ring = testing::MakeConeRing();
-  ThreadPool pool(2);
-  const Site site(ring.window, 46.0, 8.0, RingSiteOptions(), &pool);
-  RenderOptions ro;
-  ro.max_distance_m = 30'000.0;
-  const auto k = CameraIntrinsics::FromHfov(480, 320, 50.0);
-  const CameraPose truth{40.0, 1.5, -0.8};
-  const cv::Mat photo = RenderView(ring.window, ring.eye, truth, k, ro);
+  RenderedRing scene;
+  const Site& site = scene.site;
+  const cv::Mat& photo = scene.photo;
+  ThreadPool& pool = scene.pool;
+  testing::ConeRing& ring = scene.ring;
   PhotoOptions po;
   po.pinhole = true;
   const PhotoRegistration r = RegisterPhoto(site, photo, po, &pool);
