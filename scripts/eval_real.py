@@ -337,16 +337,19 @@ def main():
             failed = True
     for ring_mode in [m for m in ("ring", "ring-camera") if m in modes]:
         with_camera = ring_mode == "ring-camera"
+        # Each photo's camera file written once, before the probes run in
+        # parallel (two probes writing the same file let one read it half
+        # written).
+        ring_cameras = {}
+        for name, t, _ in photos if with_camera else []:
+            ring_cameras[name] = os.path.join(tmpdir, name + ".ring.camera.json")
+            camera_file(t, ring_cameras[name])
         probes = [(p, b, dist) + offset_position(p[1]["lat"], p[1]["lon"], b, dist)
                   for p in photos for b, dist in RING_OFFSETS]
 
         def ring_probe(x):
             (name, t, d), b, dist, lat, lon = x
-            extra = []
-            if with_camera:
-                path = os.path.join(tmpdir, name + ".ring.camera.json")
-                camera_file(t, path)
-                extra = ["--camera", path]
+            extra = ["--camera", ring_cameras[name]] if with_camera else []
             return register(binary, shared, d, name, t, extra, lat=lat, lon=lon)
         out = list(pool.map(ring_probe, probes))
         print(f"\n== a ring of wrong positions: 12 bearings at 2, 3 and 5 km ({len(probes)} probes)"

@@ -122,22 +122,33 @@ PositionCheck CheckPositionConsistency(const Site& site, const HorizonProfile& h
   struct Place {
     Eigen::Vector2d en{0.0, 0.0};
     double cost = INFINITY;
-    double azimuth_deg = NAN;
+  };
+  // The horizon at a place: the sector of the given one (the same bins,
+  // within the reach) or computed.
+  auto horizon_at = [&](const Eigen::Vector2d& en) -> std::optional<HorizonProfile> {
+    if (en.isZero()) {
+      HorizonProfile h = horizon;
+      for (int i = 0; i < h.size(); ++i)
+        if (std::abs(std::remainder(h.AzimuthDeg(i) - ho.sector_center_deg, 360.0)) > half_view)
+          h.elevation_deg[i] = h.distance_m[i] = h.lat_deg[i] = h.lon_deg[i] = h.height_m[i] = h.post_spacing_m[i] =
+              h.relief_slope[i] = NAN;
+      return h;
+    }
+    GeodeticPoint g = frame.GeodeticFromEnu(Eigen::Vector3d(en.x(), en.y(), 0.0));
+    const std::optional<double> ground = site.window().HeightAt(g.lat_deg, g.lon_deg);
+    if (!ground) return std::nullopt;
+    g.height_m = altitude_given ? std::max(given_eye, *ground + kDefaultEyeHeightM) : *ground + given_agl;
+    return ComputeHorizon(site.window(), g, ho);
   };
   // The best pose's cost at each place (the search's, under the DEM error
   // model as given: comparable between places).
   auto fit = [&](Place& p) {
-    GeodeticPoint g = frame.GeodeticFromEnu(Eigen::Vector3d(p.en.x(), p.en.y(), 0.0));
-    const std::optional<double> ground = site.window().HeightAt(g.lat_deg, g.lon_deg);
-    if (!ground) return;
-    g.height_m = altitude_given ? std::max(given_eye, *ground + kDefaultEyeHeightM) : *ground + given_agl;
-    if (p.en.isZero()) g.height_m = given_eye;
-    HorizonProfile h = ComputeHorizon(site.window(), g, ho);
-    HoldSectorEdges(h);
-    const Registration r = Register(skyline, h, ro);
+    std::optional<HorizonProfile> h = horizon_at(p.en);
+    if (!h) return;
+    HoldSectorEdges(*h);
+    const Registration r = Register(skyline, *h, ro);
     if (r.candidates.empty()) return;
     p.cost = r.candidates[0].cost;
-    p.azimuth_deg = r.candidates[0].pose.azimuth_deg;
   };
   auto fit_all = [&](std::vector<Place>& places) {
     auto one = [&](size_t i, int) { fit(places[i]); };
@@ -186,7 +197,6 @@ PositionCheck CheckPositionConsistency(const Site& site, const HorizonProfile& h
   }
   out.cost_ratio = center.cost / given.cost;
   out.best_offset_en_m = center.en;
-  out.best_azimuth_deg = center.azimuth_deg;
   if (refused()) {
     out.consistent = false;
     std::ostringstream m;

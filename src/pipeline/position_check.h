@@ -50,7 +50,6 @@ struct PositionCheck {
   bool consistent = true;
   double cost_ratio = 1.0;                        // best place's cost over the given position's
   Eigen::Vector2d best_offset_en_m{0.0, 0.0};     // where the best place is (east, north), metres
-  double best_azimuth_deg = NAN;                  // the best pose's azimuth there
   int horizons = 0;                               // horizons computed
   double ms = 0.0;
   std::string message;  // why it was refused, else empty
