@@ -92,6 +92,17 @@ def camera_file(truth, path):
                "k": c["k"], "p": c["p"], "width": truth["width"], "height": truth["height"]}, open(path, "w"))
 
 
+def camera_files(photos, tmpdir):
+    """Each photo's camera file, written once, before probes that read it run
+    side by side (a probe writing it while another read it saw it half
+    written). Returns {name: path}."""
+    paths = {}
+    for name, t, _ in photos:
+        paths[name] = os.path.join(tmpdir, name + ".camera.json")
+        camera_file(t, paths[name])
+    return paths
+
+
 def traced_file(truth, path):
     json.dump({"width": truth["width"], "height": truth["height"], "y": truth["skyline_row"]}, open(path, "w"))
 
@@ -305,9 +316,7 @@ def main():
         if mode not in modes:
             continue
         with_camera = mode == "wrong-camera"
-        if with_camera:  # one file per photo, written before its probes run side by side and read it
-            for name, t, _ in photos:
-                camera_file(t, os.path.join(tmpdir, name + ".camera.json"))
+        cameras = camera_files(photos, tmpdir) if with_camera else {}
         probes = []
         for p in photos:
             for bearing, dist in WRONG_OFFSETS:
@@ -319,9 +328,7 @@ def main():
 
         def probe(x):
             (name, t, d), label, dem, lat, lon, alt = x
-            extra = []
-            if with_camera:
-                extra = ["--camera", os.path.join(tmpdir, name + ".camera.json")]
+            extra = ["--camera", cameras[name]] if with_camera else []
             return name, label, register(binary, shared, d, name, t, extra, dem=dem, lat=lat, lon=lon, alt=alt)
         out = list(pool.map(probe, probes))
         print(f"\n== wrong position (2-10 km away) or another region's DEM{' with --camera' if with_camera else ''}: "
@@ -337,19 +344,13 @@ def main():
             failed = True
     for ring_mode in [m for m in ("ring", "ring-camera") if m in modes]:
         with_camera = ring_mode == "ring-camera"
-        # Each photo's camera file written once, before the probes run in
-        # parallel (two probes writing the same file let one read it half
-        # written).
-        ring_cameras = {}
-        for name, t, _ in photos if with_camera else []:
-            ring_cameras[name] = os.path.join(tmpdir, name + ".ring.camera.json")
-            camera_file(t, ring_cameras[name])
+        cameras = camera_files(photos, tmpdir) if with_camera else {}
         probes = [(p, b, dist) + offset_position(p[1]["lat"], p[1]["lon"], b, dist)
                   for p in photos for b, dist in RING_OFFSETS]
 
         def ring_probe(x):
             (name, t, d), b, dist, lat, lon = x
-            extra = ["--camera", ring_cameras[name]] if with_camera else []
+            extra = ["--camera", cameras[name]] if with_camera else []
             return register(binary, shared, d, name, t, extra, lat=lat, lon=lon)
         out = list(pool.map(ring_probe, probes))
         print(f"\n== a ring of wrong positions: 12 bearings at 2, 3 and 5 km ({len(probes)} probes)"

@@ -22,12 +22,11 @@ class HorizonAccumulator {
   explicit HorizonAccumulator(const SweepSetup& setup) : setup_(&setup), best_(setup.num_sectors) {}
   // Bins outside the sector are never raised (and tiles seen only in them
   // are culled): their maxima start at +infinity.
-  HorizonAccumulator(const SweepSetup& setup, double center_deg, double half_width_deg) : HorizonAccumulator(setup) {
-    if (!(half_width_deg < 180.0)) return;
+  HorizonAccumulator(const SweepSetup& setup, const HorizonOptions& options) : HorizonAccumulator(setup) {
+    if (!(options.sector_half_width_deg < 180.0)) return;
     const double step_deg = 360.0 / setup.num_sectors;
     for (int i = 0; i < setup.num_sectors; ++i)
-      if (std::abs(std::remainder(i * step_deg - center_deg, 360.0)) > half_width_deg)
-        best_[i].tan_el = std::numeric_limits<double>::infinity();
+      if (!options.InSector(i * step_deg)) best_[i].tan_el = std::numeric_limits<double>::infinity();
   }
 
   void Post(const SweepPoint& p) { Update(p.sector, p); }
@@ -271,8 +270,7 @@ HorizonProfile ComputeHorizon(const TerrainWindow& terrain, const GeodeticPoint&
       internal::MakeSweepSetup(n, 0.5, options.min_distance_m, options.max_distance_m, options.refraction);
   auto accs = internal::SweepGrids<HorizonAccumulator>(terrain.grids, frame, setup, options.pool, options.num_threads,
                                                        [&] {
-                                                         return HorizonAccumulator(setup, options.sector_center_deg,
-                                                                                   options.sector_half_width_deg);
+                                                         return HorizonAccumulator(setup, options);
                                                        });
   for (size_t i = 1; i < accs.size(); ++i) accs[0].MergeFrom(accs[i]);
 

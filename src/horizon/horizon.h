@@ -3,6 +3,7 @@
 // and 4.2), and the inner ridge lines (the paper's surface silhouettes S_s).
 #pragma once
 
+#include <cmath>
 #include <optional>
 #include <vector>
 
@@ -25,6 +26,10 @@ struct HorizonOptions {
   // ComputeHorizon only; 180 = the whole circle.
   double sector_center_deg = 0.0;
   double sector_half_width_deg = 180.0;
+  // Whether a bin centred at azimuth_deg lies within the sector.
+  bool InSector(double azimuth_deg) const {
+    return !(std::abs(std::remainder(azimuth_deg - sector_center_deg, 360.0)) > sector_half_width_deg);
+  }
   void Check() const;                      // Throws InvalidArgument naming the field.
   int NumBins() const;
 };

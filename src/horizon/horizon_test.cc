@@ -188,6 +188,7 @@ TEST(ComputeHorizon, SectorGivesTheSameBinsInsideAndNaNOutside) {
     int inside = 0;
     for (int i = 0; i < a.size(); ++i) {
       if (std::abs(std::remainder(a.AzimuthDeg(i) - center, 360.0)) <= half) {
+        EXPECT_TRUE(sector.InSector(a.AzimuthDeg(i)));
         ++inside;
         EXPECT_EQ(a.elevation_deg[i], b.elevation_deg[i]) << "bin " << i;
         if (std::isfinite(a.distance_m[i])) {

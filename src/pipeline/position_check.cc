@@ -85,19 +85,18 @@ PositionCheck CheckPositionConsistency(const Site& site, const HorizonProfile& h
 
   // The view's sector (the opening angle's half and a margin each side),
   // and horizons as far as the view's own reaches (+30%, +3 km).
-  const double half_view = std::min(180.0, 0.5 * HfovFromFocalDeg(reg.focal_px, skyline.width) + co.view_margin_deg);
-  double view_distance = 0.0;
-  for (int i = 0; i < horizon.size(); ++i)
-    if (std::abs(AngDiffDeg(horizon.AzimuthDeg(i), reg.pose.azimuth_deg)) <= half_view &&
-        std::isfinite(horizon.distance_m[i]))
-      view_distance = std::max(view_distance, horizon.distance_m[i]);
   HorizonOptions ho = site.horizon_options();
   ho.azimuth_step_deg = horizon.azimuth_step_deg;
-  ho.max_distance_m = std::min(ho.max_distance_m, 1.3 * view_distance + 3000.0);
   ho.num_threads = 1;
   ho.pool = nullptr;
   ho.sector_center_deg = reg.pose.azimuth_deg;
-  ho.sector_half_width_deg = half_view;
+  ho.sector_half_width_deg =
+      std::min(180.0, 0.5 * HfovFromFocalDeg(reg.focal_px, skyline.width) + co.view_margin_deg);
+  double view_distance = 0.0;
+  for (int i = 0; i < horizon.size(); ++i)
+    if (ho.InSector(horizon.AzimuthDeg(i)) && std::isfinite(horizon.distance_m[i]))
+      view_distance = std::max(view_distance, horizon.distance_m[i]);
+  ho.max_distance_m = std::min(ho.max_distance_m, 1.3 * view_distance + 3000.0);
   if (!(ho.max_distance_m > ho.min_distance_m)) return finish();
   // Each place searched as the photo was (its opening angles and priors),
   // one thread per place.
@@ -129,7 +128,7 @@ PositionCheck CheckPositionConsistency(const Site& site, const HorizonProfile& h
     if (en.isZero()) {
       HorizonProfile h = horizon;
       for (int i = 0; i < h.size(); ++i)
-        if (std::abs(std::remainder(h.AzimuthDeg(i) - ho.sector_center_deg, 360.0)) > half_view)
+        if (!ho.InSector(h.AzimuthDeg(i)))
           h.elevation_deg[i] = h.distance_m[i] = h.lat_deg[i] = h.lon_deg[i] = h.height_m[i] = h.post_spacing_m[i] =
               h.relief_slope[i] = NAN;
       return h;
