@@ -47,11 +47,13 @@ class CameraDatabase {
     const std::string cache_key = Lower(make) + '\n' + Lower(model);
     if (auto it = cache_.find(cache_key); it != cache_.end()) return it->second;
     if (!db_) db_.reset(new lfDatabase());
-    if (!all_loaded_ && loaded_makers_.insert(key).second) LoadMakerFiles(key);
+    if (!all_loaded_ && loaded_makers_.insert(key).second) LoadFiles(key);
     std::optional<double> crop = Find(make, model);
     if (!crop && !all_loaded_) {
       all_loaded_ = true;
-      db_->Load();  // the whole database: a maker whose files bear another name
+      // Every file: a maker whose files bear another name. File by file, as
+      // lensfun's own lfDatabase::Load() leaks a path string on each call.
+      LoadFiles("");
       crop = Find(make, model);
     }
     cache_[cache_key] = crop;
@@ -59,12 +61,14 @@ class CameraDatabase {
   }
 
  private:
-  void LoadMakerFiles(const std::string& key) {
+  // The XML files whose names contain `key` (all of them for ""), each once.
+  void LoadFiles(const std::string& key) {
     for (const char* dir : kDatabaseDirs) {
       std::error_code ec;
       for (const auto& entry : std::filesystem::directory_iterator(dir, ec)) {
         const std::string name = entry.path().filename().string();
-        if (entry.path().extension() == ".xml" && name.find(key) != std::string::npos)
+        if (entry.path().extension() == ".xml" && name.find(key) != std::string::npos &&
+            loaded_files_.insert(name).second)
           db_->Load(entry.path().string().c_str());
       }
     }
@@ -84,6 +88,7 @@ class CameraDatabase {
   std::mutex mutex_;
   std::unique_ptr<lfDatabase> db_;
   std::set<std::string> loaded_makers_;
+  std::set<std::string> loaded_files_;
   bool all_loaded_ = false;
   std::map<std::string, std::optional<double>> cache_;
 };
