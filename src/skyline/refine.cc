@@ -208,6 +208,23 @@ void RaiseToSkyEnd(const cv::Mat& bgr, const std::vector<uint8_t>& skip, std::ve
   }
 }
 
+void ContinueFaintColumns(const std::vector<ColumnFit>& fits, const std::vector<uint8_t>& skip, double faint_contrast,
+                          double max_jump_px, int image_rows, Skyline& out) {
+  const int w = static_cast<int>(fits.size());
+  auto join = [&](int x, int from) {
+    const ColumnFit& f = fits[x];
+    if (std::isfinite(out.y[x]) || !std::isfinite(f.y) || skip[x] || f.contrast < faint_contrast) return;
+    const double y = std::clamp(f.y, 0.0, static_cast<double>(image_rows));
+    if (!(std::abs(y - out.y[from]) <= max_jump_px)) return;
+    out.y[x] = y;
+    out.confidence[x] = 0.05;
+  };
+  for (int x = 1; x < w; ++x)
+    if (std::isfinite(out.y[x - 1])) join(x, x - 1);
+  for (int x = w - 2; x >= 0; --x)
+    if (std::isfinite(out.y[x + 1])) join(x, x + 1);
+}
+
 std::vector<uint8_t> FindOccluders(const std::vector<ColumnFit>& fits, int image_rows) {
   // Occluders: trees and poles stand in front of the horizon as narrow
   // spikes with near-vertical flanks (terrain flanks are far less steep in

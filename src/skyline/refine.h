@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "skyline/lab.h"
+#include "skyline/skyline.h"
 
 namespace horizonreg::skyline_detail {
 
@@ -89,6 +90,16 @@ ColumnFit RefineColumn(RefineStrips& strips, int x, int h, int centre, int windo
 // The boundary then lies half a row above that row. Columns flagged in
 // `skip` and null ones are left alone.
 void RaiseToSkyEnd(const cv::Mat& bgr, const std::vector<uint8_t>& skip, std::vector<double>& y);
+
+// Hysteresis (as Canny's edges): a column too faint to stand alone (its
+// contrast at least faint_contrast, under the clear columns' threshold)
+// joins the skyline when it continues a kept neighbour without a jump of
+// more than max_jump_px, column after column, from both sides. A hazy ridge
+// under a smooth sky keeps a boundary of 1.5-2.5 delta E along hundreds of
+// columns, each alone too faint to trust. Joined columns get confidence
+// 0.05; columns flagged in `skip` stay null.
+void ContinueFaintColumns(const std::vector<ColumnFit>& fits, const std::vector<uint8_t>& skip, double faint_contrast,
+                          double max_jump_px, int image_rows, Skyline& out);
 
 // 1 for the columns where an occluder (tree, pole) hides the horizon.
 std::vector<uint8_t> FindOccluders(const std::vector<ColumnFit>& fits, int image_rows);

@@ -73,5 +73,33 @@ TEST(RaiseToSkyEnd, NullAndSkippedColumnsAreLeftAlone) {
   EXPECT_GE(CountAt(y, kTop - 0.5), 0.45 * kW);  // the other odd columns
 }
 
+// A ridge clear (6 delta E) in columns 0-49, faint (2 delta E, under the
+// clear threshold 2.5) in 50-149, a jump of 10 rows at 150, faint again to
+// the end; a faint run at 170-179 stands alone beyond a null gap.
+TEST(ContinueFaintColumns, FaintColumnsContinuingAClearRunAreKept) {
+  const int w = 200;
+  std::vector<ColumnFit> fits(w);
+  Skyline out;
+  out.width = w, out.height = 100;
+  out.y.assign(w, NAN), out.confidence.assign(w, 0.0);
+  for (int x = 0; x < w; ++x) {
+    fits[x].y = 40.0 + 0.5 * std::sin(x / 7.0) + (x >= 150 ? 10.0 : 0.0);
+    fits[x].contrast = x < 50 ? 6.0f : 2.0f;
+    if (x < 50) out.y[x] = fits[x].y, out.confidence[x] = 0.2;  // the clear columns, kept before
+  }
+  for (int x = 160; x < 170; ++x) fits[x].y = NAN;  // no boundary found
+  std::vector<uint8_t> skip(w, 0);
+  skip[120] = 1;  // an occluder's column
+  Skyline strict = out;
+  ContinueFaintColumns(fits, skip, 2.5, 3.0, 100, strict);  // threshold above the faint columns: nothing joins
+  EXPECT_EQ(strict.VisibleCount(), 50);
+  ContinueFaintColumns(fits, skip, 1.5, 3.0, 100, out);
+  for (int x = 50; x < 120; ++x) EXPECT_DOUBLE_EQ(out.y[x], fits[x].y) << x;
+  EXPECT_DOUBLE_EQ(out.confidence[60], 0.05);
+  EXPECT_TRUE(std::isnan(out.y[120])) << "a skipped column stays null";
+  for (int x = 121; x < w; ++x) EXPECT_TRUE(std::isnan(out.y[x])) << x << ": beyond the skipped column or the jump";
+  EXPECT_DOUBLE_EQ(out.confidence[10], 0.2) << "a clear column keeps its confidence";
+}
+
 }  // namespace
 }  // namespace horizonreg::skyline_detail

@@ -37,6 +37,7 @@ constexpr int kPersistentRows = 4;            // rows averaged on each side of a
 constexpr float kTopmostMinStep = 1.0f;       // delta E: a persistent step is clear from this ...
 constexpr float kTopmostNoiseFactor = 5.0f;   // ... or from this many times the sky's noise
 constexpr float kTopmostAboveWeight = 2.0f;   // cost per delta E of clear steps left above the first boundary
+constexpr double kFaintMaxJumpPx = 3.0;  // hysteresis: a faint column's largest step from its clear neighbour (per 1024 columns)
 constexpr float kSkyModelVeto = 3.0f;         // sky-model deviation (robust sigmas) from which a pixel is not sky ...
 constexpr float kSkyModelClean = 2.0f;        // sky-model deviation (robust sigmas) below which a pixel is clean sky
 constexpr float kSubtleDeltaE = 12.0f;        // ... up to this colour distance (beyond: the histograms decide)
@@ -589,6 +590,8 @@ void SkylineOptions::Check() const {
   if (!(edge_weight >= 0.0)) ThrowField("SkylineOptions::edge_weight", edge_weight, ">= 0");
   if (!(min_contrast >= 0.0)) ThrowField("SkylineOptions::min_contrast", min_contrast, ">= 0");
   if (!(min_contrast_sigmas >= 0.0)) ThrowField("SkylineOptions::min_contrast_sigmas", min_contrast_sigmas, ">= 0");
+  if (!(faint_contrast_share > 0.0 && faint_contrast_share <= 1.0))
+    ThrowField("SkylineOptions::faint_contrast_share", faint_contrast_share, "in (0, 1]");
   if (!(fog_contrast >= 0.0)) ThrowField("SkylineOptions::fog_contrast", fog_contrast, ">= 0");
   if (!(fog_max_chroma >= 0.0)) ThrowField("SkylineOptions::fog_max_chroma", fog_max_chroma, ">= 0");
 }
@@ -776,8 +779,13 @@ Skyline ExtractSkyline(const cv::Mat& image, const SkylineOptions& options) {
     if (clearest < options.fog_contrast && median_spread > soft) {
       std::fill(out.y.begin(), out.y.end(), NAN);
       std::fill(out.confidence.begin(), out.confidence.end(), 0.0);
+      return out;
     }
   }
+  // Fainter columns that continue clear ones, after the fog test (which
+  // reads the clear columns only).
+  ContinueFaintColumns(fits, grown, options.faint_contrast_share * min_contrast,
+                       kFaintMaxJumpPx * std::max(1.0, image.cols / 1024.0), image.rows, out);
   // A hazy far ridge's top taken for sky: the boundary up to where the sky ends.
   skyline_detail::RaiseToSkyEnd(bgr, grown, out.y);
   return out;

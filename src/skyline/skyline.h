@@ -29,6 +29,9 @@ struct SkylineOptions {
   // strip of sky is not judged by the terrain's texture below it).
   double min_contrast = 2.5;
   double min_contrast_sigmas = 2.5;
+  // A column down to this share of that contrast is kept when it continues
+  // a kept column without a jump (hysteresis).
+  double faint_contrast_share = 0.6;
   // Fog: all null when the sky above the boundary is white-grey (chroma
   // below fog_max_chroma), the clearest 10% of the boundary differ by less
   // than fog_contrast (delta E) and the boundary is soft: terrain fading
