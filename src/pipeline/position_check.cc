@@ -165,15 +165,26 @@ PositionCheck CheckPositionConsistency(const Site& site, const HorizonProfile& h
     }
   };
 
-  // The given position (searched on the same sector) and the first rings.
+  // The given position (searched on the same sector) and the first ring.
   std::vector<Place> places{Place{}};
   ring(Eigen::Vector2d::Zero(), co.first_step_m, places);
-  if (co.far_ring_m > co.first_step_m) ring(Eigen::Vector2d::Zero(), co.far_ring_m, places);
   fit_all(places);
   const Place given = places[0];
   if (!std::isfinite(given.cost) || !(given.cost > 0.0)) return finish();
   Place center = given;
   places.erase(places.begin());
+  // The far ring only where the cost falls somewhere on the first: a given
+  // position that no place 1 km away beats lies at the bottom of its bowl
+  // (every false registration of the ring probes fell at 1 km already), and
+  // a true one is spared half the horizons.
+  const bool falls = std::any_of(places.begin(), places.end(),
+                                 [&](const Place& p) { return p.cost < (1.0 - kMinGain) * given.cost; });
+  if (falls && co.far_ring_m > co.first_step_m) {
+    std::vector<Place> far;
+    ring(Eigen::Vector2d::Zero(), co.far_ring_m, far);
+    fit_all(far);
+    places.insert(places.end(), far.begin(), far.end());
+  }
   auto refused = [&] { return center.cost < co.max_cost_ratio * given.cost && center.en.norm() >= co.min_offset_m; };
   double step = co.first_step_m;
   while (!refused()) {

@@ -26,7 +26,7 @@ namespace horizonreg {
 
 struct PositionCheckOptions {
   double first_step_m = 1000.0;   // the pattern's first step ...
-  double far_ring_m = 3000.0;     // ... with a ring this far out at the start (a farther bowl)
+  double far_ring_m = 3000.0;     // ... and a ring this far out, when the cost falls on the first (a farther bowl)
   double min_step_m = 500.0;      // halved down to this (only once the search has moved)
   int directions = 8;             // places per ring
   double max_offset_m = 6000.0;   // the search stays within this of the given position

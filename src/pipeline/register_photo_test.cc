@@ -181,7 +181,10 @@ TEST(PositionCheck, PassesTheTruePositionAndRefusesOneTwoKilometresOff) {
   ASSERT_TRUE(r.position_check.has_value());
   EXPECT_TRUE(r.position_check->consistent);
   EXPECT_GE(r.position_check->cost_ratio, 0.95);
-  EXPECT_GE(r.position_check->horizons, 17);  // the given place and two rings of 8
+  // The given place and the first ring of 8; no place there fits better, so
+  // no far ring.
+  EXPECT_EQ(r.position_check->cost_ratio, 1.0);
+  EXPECT_EQ(r.position_check->horizons, 9);
   EXPECT_EQ(RegistrationReport(site, r, "arguments", 1.0)["position_check"]["consistent"], true);
   // Trusted: no check.
   po.check_position.reset();
@@ -197,6 +200,7 @@ TEST(PositionCheck, PassesTheTruePositionAndRefusesOneTwoKilometresOff) {
   EXPECT_FALSE(c.consistent);
   EXPECT_LT(c.cost_ratio, 0.9);
   EXPECT_GE(c.OffsetM(), 500.0);
+  EXPECT_GE(c.horizons, 17);  // the cost falls on the first ring: the far ring too
   EXPECT_NEAR(AngDiffDeg(c.BearingDeg(), 270.0), 0.0, 50.0);
   EXPECT_NE(c.message.find("position"), std::string::npos);
   // Without a pool: the same answer.
