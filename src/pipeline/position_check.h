@@ -31,6 +31,8 @@ struct PositionCheckOptions {
   int directions = 8;             // places per ring
   double max_offset_m = 6000.0;   // the search stays within this of the given position
   int max_horizons = 48;          // and computes at most this many horizons
+  int candidates = 4;             // each place's search: distinct hypotheses kept (at most the registration's) ...
+  int refined_candidates = 2;     // ... of which this many get the least squares
   // Refused when some place at least min_offset_m away fits with a cost
   // below this share of the given position's. Measured: the 12 real photos
   // registered at their true positions, no place of the first rings fits
