@@ -461,8 +461,12 @@ LocateResult LocateInWindow(const TerrainWindow& window, const cv::Mat& image, c
   out.registration = RegisterPhoto(*out.site, image, po, pool);
   out.register_ms = MsSince(t0);
   std::swap(out.candidates[0], out.candidates[answer]);
-  if (best < 0 || !out.registration.registration.registered) {
+  if (best < 0) {
     out.message = "no candidate viewpoint registers: the skyline is not distinctive enough in the area";
+    return out;
+  }
+  if (!out.registration.registration.registered) {  // its second look, rival search or position check refused it
+    out.message = "the best place does not register: " + out.registration.registration.message;
     return out;
   }
   if (const LocateCandidate& a = out.candidates[0]; a.orientation_spread_deg > options.max_orientation_spread_deg) {
