@@ -74,8 +74,9 @@ TEST(RaiseToSkyEnd, NullAndSkippedColumnsAreLeftAlone) {
 }
 
 // A ridge clear (6 delta E) in columns 0-49, faint (2 delta E, under the
-// clear threshold 2.5) in 50-149, a jump of 10 rows at 150, faint again to
-// the end; a faint run at 170-179 stands alone beyond a null gap.
+// clear threshold 2.5) in 50-199, an occluder's column at 120, a jump of
+// 10 rows at 150 and no boundary found at 160-169: the faint columns join
+// from the clear run up to the occluder, none beyond it.
 TEST(ContinueFaintColumns, FaintColumnsContinuingAClearRunAreKept) {
   const int w = 200;
   std::vector<ColumnFit> fits(w);
