@@ -269,9 +269,7 @@ HorizonProfile ComputeHorizon(const TerrainWindow& terrain, const GeodeticPoint&
   const SweepSetup setup =
       internal::MakeSweepSetup(n, 0.5, options.min_distance_m, options.max_distance_m, options.refraction);
   auto accs = internal::SweepGrids<HorizonAccumulator>(terrain.grids, frame, setup, options.pool, options.num_threads,
-                                                       [&] {
-                                                         return HorizonAccumulator(setup, options);
-                                                       });
+                                                       [&] { return HorizonAccumulator(setup, options); });
   for (size_t i = 1; i < accs.size(); ++i) accs[0].MergeFrom(accs[i]);
 
   HorizonProfile out;

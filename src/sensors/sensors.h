@@ -36,8 +36,7 @@ SensorReading ReadSensorJson(const std::string& path);
 // GPSImgDirection as the compass (only when its reference is true north, 'T',
 // or absent), FocalLengthIn35mmFilm (else FocalLength times the crop factor
 // of the body its Make and Model name, when lensfun knows it). Fields the
-// photo lacks stay empty; a
-// photo without EXIF gives an empty reading. Never throws for missing or
+// photo lacks stay empty; a photo without EXIF gives an empty reading. Never throws for missing or
 // malformed metadata. Thread-safe.
 SensorReading ReadExif(const std::string& image_path);
 
