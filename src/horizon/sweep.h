@@ -160,7 +160,7 @@ void SweepRows(const DemGrid& grid, const LocalFrame& frame, const SweepSetup& s
       in.row_n = kWgs84A / std::sqrt(1.0 - kWgs84E2 * in.row_sin_lat * in.row_sin_lat);
       in.col_sin_dlon = col_s + c_begin, in.col_cos_dlon = col_c + c_begin;
     } else {
-      for (int c = c_begin; c < c_end; ++c) {
+      for (int c = c_begin; c < c_end; c += col_stride) {  // ComputeRow reads every col_stride-th
         const size_t k = static_cast<size_t>(r) * w + c;
         const double lat = DegToRad(grid.lat_deg[k]), dl = DegToRad(grid.lon_deg[k] - o.lon_deg);
         scratch.sin_lat[c - c_begin] = std::sin(lat), scratch.cos_lat[c - c_begin] = std::cos(lat);
