@@ -19,6 +19,12 @@ Modes (each a per-photo table and a summary):
             DEM: every one must answer no_match (a registration there is false)
   wrong-camera  the same probes with --camera from the truth (a known lens
             narrows the search to other pairs of peaks)
+  noexif    (not in the default set) plain on the pixels alone: each photo
+            decoded and saved as PNG without its EXIF, so no focal length or
+            camera model narrows the opening angles searched (10-120 deg): a
+            webcam frame, a scan or a stripped upload. Counts the photos within
+            0.5 deg (--floors noexif=N, default 0) and the false registrations
+            (must be 0)
   ring      (not in the default set; about 1 minute) register from a ring of
             wrong positions, 12 bearings (every 30 deg) at 2, 3 and 5 km:
             wrong's 5 offsets sample a few bearings, and from a position 2-3 km
@@ -71,9 +77,10 @@ def offset_position(lat, lon, bearing_deg, dist_m):
     return lat + math.degrees(dlat), lon + math.degrees(dlon)
 
 
-def register(binary, shared, photo_dir, name, truth, extra, dem=None, lat=None, lon=None, alt=True, overlay=None):
+def register(binary, shared, photo_dir, name, truth, extra, dem=None, lat=None, lon=None, alt=True, overlay=None,
+             image=None):
     with tempfile.NamedTemporaryFile(suffix=".json") as tmp:
-        cmd = [binary, "register", os.path.join(photo_dir, truth["image"]),
+        cmd = [binary, "register", image or os.path.join(photo_dir, truth["image"]),
                "--dem", os.path.join(shared, "dem", dem or truth["dem"]),
                "--lat", repr(truth["lat"] if lat is None else lat), "--lon", repr(truth["lon"] if lon is None else lon),
                "--json", tmp.name] + extra
@@ -217,7 +224,7 @@ def main():
     overlay_dir = opt("--overlay-dir")
     jobs = int(opt("--jobs", "2"))
     floors = {"plain": 12, "camera": 12, "initial": 13, "skyline": 0.9, "thin": 0.9, "skyline-given": 0.95,
-              "thin-given": 0.95, "ring": 0, "ring-camera": 0}
+              "thin-given": 0.95, "ring": 0, "ring-camera": 0, "noexif": 0}
     for kv in (opt("--floors") or "").split(","):
         if "=" in kv:
             k, v = kv.split("=")
@@ -284,6 +291,23 @@ def main():
         print(f"photos converging from all four starts: {converged_photos}/{len(photos)}")
         if check and (converged_photos < floors["initial"] or false):
             print("FAIL: --initial misses its floor or has a false registration")
+            failed = True
+    if "noexif" in modes:
+        try:
+            import cv2  # python3-opencv, a test dependency
+        except ImportError:
+            cv2 = None
+            print("FAIL: --modes noexif needs OpenCV's Python module: python3-opencv (make test-deps)")
+            failed = True
+
+        def noexif(p):
+            path = os.path.join(tmpdir, p[0] + ".noexif.png")
+            if cv2 is None or not cv2.imwrite(path, cv2.imread(os.path.join(p[2], p[1]["image"]))):
+                return p[0], p[1], {"status": "error", "message": "cannot write the PNG copy (OpenCV)"}
+            return p[0], p[1], register(binary, shared, p[2], p[0], p[1], [], image=path)
+        good, false, _, _ = pose_table("no prior, no EXIF (the pixels alone, as PNG)", run_all(noexif), 0.5)
+        if check and (good < floors["noexif"] or false):
+            print("FAIL: registration without EXIF misses its floor or has a false registration")
             failed = True
     if "traced" in modes:
         def traced(p):
