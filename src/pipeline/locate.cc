@@ -189,6 +189,8 @@ void LocateOptions::Check() const {
     ThrowField("LocateOptions::grid_m", grid_m, "0 (automatic) or in [10, radius] metres");
   if (!(coarse_max_distance_m > 0.0)) ThrowField("LocateOptions::coarse_max_distance_m", coarse_max_distance_m, "> 0");
   if (coarse_keep < 1 || register_keep < 1) throw InvalidArgument("LocateOptions: coarse_keep and register_keep >= 1");
+  if (!(coarse_post_m > 0.0)) ThrowField("LocateOptions::coarse_post_m", coarse_post_m, "> 0");
+  if (!(min_evidence_nats >= 0.0)) ThrowField("LocateOptions::min_evidence_nats", min_evidence_nats, ">= 0");
   if (site.alt_m) throw InvalidArgument("locate: the eye is given as a height above the ground (--agl), not an altitude");
   site.Check();
   photo.Check();
@@ -485,6 +487,15 @@ LocateResult LocateInWindow(const TerrainWindow& window, const cv::Mat& image, c
     why.precision(3);
     why << "the best place fits too loosely for a searched position (misfit " << out.candidates[0].misfit << ", at most "
         << options.max_misfit << ")";
+    out.message = why.str();
+    return out;
+  }
+  // ... and carry more evidence than a given position needs.
+  if (const double nats = out.registration.registration.evidence_nats; !(nats >= options.min_evidence_nats)) {
+    std::ostringstream why;
+    why.precision(3);
+    why << "the skyline carries too little evidence for a searched position (" << nats << " nats, at least "
+        << options.min_evidence_nats << "): a plain skyline fits places far apart";
     out.message = why.str();
     return out;
   }

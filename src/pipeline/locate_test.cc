@@ -146,6 +146,15 @@ TEST(Locate, FindsARenderedViewInsideTheArea) {
   EXPECT_NEAR(r.registration.registration.pose.pitch_deg, truth.pitch_deg, 0.3);
   EXPECT_GT(r.coarse_viewpoints, 200);
   EXPECT_GE(r.registration_distinctiveness, o.min_distinctiveness);
+  const double nats = r.registration.registration.evidence_nats;
+  EXPECT_GE(nats, o.min_evidence_nats);
+
+  // The same search, asked for more evidence than the answer carries: no
+  // answer, and the reason.
+  o.min_evidence_nats = nats + 1.0;
+  const LocateResult strict = LocateInWindow(window, photo, o, &pool);
+  EXPECT_FALSE(strict.located);
+  EXPECT_NE(strict.message.find("too little evidence"), std::string::npos) << strict.message;
 }
 
 }  // namespace
