@@ -144,6 +144,18 @@ RegistrationOptions PhotoRegistrationOptions(bool altitude_given, const PhotoOpt
   return ro;
 }
 
+std::string UnknownFovHint(const Registration& r, const std::string& fov_source, int width) {
+  if (r.registered || fov_source != "default" || !r.rival || !(r.focal_px > 0.0) || !(r.rival->focal_px > 0.0) ||
+      width <= 0)
+    return "";
+  const double best = HfovFromFocalDeg(r.focal_px, width), rival = HfovFromFocalDeg(r.rival->focal_px, width);
+  if (!(std::max(best, rival) > 1.2 * std::min(best, rival))) return "";
+  std::ostringstream m;
+  m << std::fixed << std::setprecision(0) << "; the opening angle is unknown (no EXIF focal length): the best pose"
+    << " sees " << best << " deg, its rival " << rival << " deg; --hfov (or a narrow --hfov-range) rules one out";
+  return m.str();
+}
+
 PhotoRegistration RegisterPhoto(const Site& site, const cv::Mat& image_in, const PhotoOptions& po, ThreadPool* pool) {
   const cv::Mat image = AsBgr(image_in);
   if (image.type() != CV_8UC3 || image.cols < 8 || image.rows < 8)
@@ -193,6 +205,7 @@ PhotoRegistration RegisterPhoto(const Site& site, const cv::Mat& image_in, const
       r = RefinePose(out.skyline, horizon, start, FocalFromHfovPx(po.initial->hfov_deg, image.cols), hfov_given, ro,
                      50.0);
   }
+  r.message += UnknownFovHint(r, out.fov_source, image.cols);
   if (po.refine_position) RefinePhotoPosition(site, image, *po.refine_position, ro, out, pool);
   if (po.check_position && r.registered) {
     out.position_check =

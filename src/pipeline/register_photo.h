@@ -104,6 +104,15 @@ RegistrationOptions PhotoRegistrationOptions(const Site& site, const PhotoOption
 RegistrationOptions PhotoRegistrationOptions(bool altitude_given, const PhotoOptions& options, int width, int height,
                                              std::string* fov_source = nullptr);
 
+// For a photo refused as ambiguous while its opening angle was unknown
+// (fov_source "default": no EXIF focal length, no --hfov): a hint naming
+// both opening angles, that --hfov or a narrow --hfov-range rules one out,
+// when the rival's differs from the best pose's by more than 20% (without
+// EXIF the rival is usually a narrow view elsewhere in the panorama; on the
+// Columbia photos saved without EXIF, --hfov within 3% of the truth
+// registers AK01b_20080811, a range of 40-70 deg does not). Else empty.
+std::string UnknownFovHint(const Registration& r, const std::string& fov_source, int width);
+
 // Registers an 8-bit BGR (or grey) photo taken at `site`; the stages run on
 // `pool` when given (else on their own threads). Never throws for a photo
 // that does not register (status no_match); throws InvalidArgument for bad

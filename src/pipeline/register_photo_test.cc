@@ -134,6 +134,29 @@ struct RenderedRing {
   }
 };
 
+TEST(UnknownFovHint, NamesBothOpeningAnglesOnlyWhenTheyDifferAndNoneWasKnown) {
+  constexpr int kWidth = 1000;
+  Registration r;
+  r.registered = false;
+  r.focal_px = FocalFromHfovPx(52.0, kWidth);
+  PoseCandidate rival;
+  rival.focal_px = FocalFromHfovPx(21.0, kWidth);
+  r.rival = rival;
+  const std::string hint = UnknownFovHint(r, "default", kWidth);
+  EXPECT_NE(hint.find("--hfov"), std::string::npos) << hint;
+  EXPECT_NE(hint.find("52 deg"), std::string::npos) << hint;
+  EXPECT_NE(hint.find("21 deg"), std::string::npos) << hint;
+  EXPECT_EQ(UnknownFovHint(r, "exif", kWidth), "");  // the angle was known
+  r.rival->focal_px = FocalFromHfovPx(48.0, kWidth);
+  EXPECT_EQ(UnknownFovHint(r, "default", kWidth), "");  // a rival at the same angle: no help from --hfov
+  r.rival->focal_px = FocalFromHfovPx(21.0, kWidth);
+  r.registered = true;
+  EXPECT_EQ(UnknownFovHint(r, "default", kWidth), "");
+  r.registered = false;
+  r.rival.reset();
+  EXPECT_EQ(UnknownFovHint(r, "default", kWidth), "");
+}
+
 TEST(RegisterPhoto, RegistersARenderedViewAndReportsIt) {
   RenderedRing scene;
   const Site& site = scene.site;
