@@ -100,6 +100,18 @@ def register(binary, shared, photo_dir, name, truth, extra, dem=None, lat=None, 
         return r
 
 
+def opencv_for(mode):
+    """OpenCV's Python module (python3-opencv, a test dependency: only some
+    modes need it), or None after saying which mode lacks it."""
+    try:
+        import cv2
+        return cv2
+    except ImportError:
+        print(f"FAIL: --modes {mode} needs OpenCV's Python module: python3-opencv (make test-deps), "
+              "with Debian's /usr/bin/python3")
+        return None
+
+
 def with_exif_of(original, jpeg):
     """`jpeg` (bytes) with the APP1 (EXIF) segments of `original` inserted
     after its start-of-image marker (both JPEG files)."""
@@ -192,11 +204,8 @@ def skyline_table(binary, photos, thin_sky_px=None):
     if thin_sky_px is None:
         print("\n== skyline against the hand-traced horizon (traced columns only) ==")
     else:
-        try:
-            import cv2  # only this mode needs it (python3-opencv, a test dependency)
-        except ImportError:
-            print("FAIL: --modes thin needs OpenCV's Python module: python3-opencv (make test-deps), "
-                  "with Debian's /usr/bin/python3")
+        cv2 = opencv_for("thin")
+        if cv2 is None:
             return float("nan"), float("nan")
         print(f"\n== skyline with {thin_sky_px} px of sky left above the traced horizon (photos cropped) ==")
     print(f"{'photo':<24}{'traced':>7}{'given':>7}{'<=2px':>7}{'<=5px':>7}{'median':>8}{'p90':>7}")
@@ -309,44 +318,35 @@ def main():
         if check and (converged_photos < floors["initial"] or false):
             print("FAIL: --initial misses its floor or has a false registration")
             failed = True
-    if "noexif" in modes:
-        try:
-            import cv2  # python3-opencv, a test dependency
-        except ImportError:
-            cv2 = None
-            print("FAIL: --modes noexif needs OpenCV's Python module: python3-opencv (make test-deps)")
-            failed = True
+    # Plain registration of a copy of each photo: its pixels alone (no EXIF),
+    # or re-encoded with its EXIF kept.
+    def without_exif(cv2, source, path):
+        return cv2.imwrite(path, cv2.imread(source))
 
-        def noexif(p):
-            path = os.path.join(tmpdir, p[0] + ".noexif.png")
-            if cv2 is None or not cv2.imwrite(path, cv2.imread(os.path.join(p[2], p[1]["image"]))):
-                return p[0], p[1], {"status": "error", "message": "cannot write the PNG copy (OpenCV)"}
-            return p[0], p[1], register(binary, shared, p[2], p[0], p[1], [], image=path)
-        good, false, _, _ = pose_table("no prior, no EXIF (the pixels alone, as PNG)", run_all(noexif), 0.5)
-        if check and (good < floors["noexif"] or false):
-            print("FAIL: registration without EXIF misses its floor or has a false registration")
-            failed = True
-    if "reencode" in modes:
-        try:
-            import cv2  # python3-opencv, a test dependency
-        except ImportError:
-            cv2 = None
-            print("FAIL: --modes reencode needs OpenCV's Python module: python3-opencv (make test-deps)")
-            failed = True
-
-        def reencode(p):
-            path = os.path.join(tmpdir, p[0] + ".q95.jpg")
-            source = os.path.join(p[2], p[1]["image"])
-            ok, data = (False, None) if cv2 is None else cv2.imencode(".jpg", cv2.imread(source),
-                                                                      [cv2.IMWRITE_JPEG_QUALITY, 95])
-            if not ok:
-                return p[0], p[1], {"status": "error", "message": "cannot re-encode the photo (OpenCV)"}
+    def reencoded(cv2, source, path):
+        ok, data = cv2.imencode(".jpg", cv2.imread(source), [cv2.IMWRITE_JPEG_QUALITY, 95])
+        if ok:
             with open(path, "wb") as f:
                 f.write(with_exif_of(open(source, "rb").read(), data.tobytes()))
+        return ok
+    for mode, suffix, title, write in (
+            ("noexif", ".noexif.png", "no prior, no EXIF (the pixels alone, as PNG)", without_exif),
+            ("reencode", ".q95.jpg", "no prior, re-encoded as JPEG quality 95 (EXIF kept)", reencoded)):
+        if mode not in modes:
+            continue
+        cv2 = opencv_for(mode)
+        if cv2 is None:
+            failed = failed or check
+            continue
+
+        def copy_of(p):
+            path = os.path.join(tmpdir, p[0] + suffix)
+            if not write(cv2, os.path.join(p[2], p[1]["image"]), path):
+                return p[0], p[1], {"status": "error", "message": f"cannot write the {mode} copy (OpenCV)"}
             return p[0], p[1], register(binary, shared, p[2], p[0], p[1], [], image=path)
-        good, false, _, _ = pose_table("no prior, re-encoded as JPEG quality 95 (EXIF kept)", run_all(reencode), 0.5)
-        if check and (good < floors["reencode"] or false):
-            print("FAIL: registration of the re-encoded photos misses its floor or has a false registration")
+        good, false, _, _ = pose_table(title, run_all(copy_of), 0.5)
+        if check and (good < floors[mode] or false):
+            print(f"FAIL: --modes {mode} misses its floor or has a false registration")
             failed = True
     if "traced" in modes:
         def traced(p):
