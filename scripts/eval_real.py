@@ -19,6 +19,11 @@ Modes (each a per-photo table and a summary):
             DEM: every one must answer no_match (a registration there is false)
   wrong-camera  the same probes with --camera from the truth (a known lens
             narrows the search to other pairs of peaks)
+  wrong-initial  the same probes with --initial 2 deg off the truth (mode
+            initial's four offsets in turn): a fixed camera whose approximate
+            pose is known, given the wrong position or DEM. The prior keeps
+            the search near the pose given, where a wrong horizon's pose can
+            fit with no rival (before the fix: 2 false of 91)
   noexif    (not in the default set) plain on the pixels alone: each photo
             decoded and saved as PNG without its EXIF, so no focal length or
             camera model narrows the opening angles searched (10-120 deg): a
@@ -40,6 +45,8 @@ Modes (each a per-photo table and a summary):
             when the false ones exceed --floors ring=N (a ceiling, default 0)
   ring-camera  (not in the default set) the same ring with --camera from the
             truth (--floors ring-camera=N)
+  ring-initial  (not in the default set) the same ring with --initial 2 deg
+            off the truth, as wrong-initial (--floors ring-initial=N)
   perturbed (not in the default set; about 2 minutes) plain and wrong again
             under 6 harmless changes of the horizon's sampling (--step 0.08,
             0.09, 0.12, 0.125) and refraction (--refraction 0.10, 0.16) as
@@ -57,7 +64,8 @@ false.
 """
 import concurrent.futures, json, math, os, statistics, subprocess, sys, tempfile
 
-ALL_MODES = ["plain", "camera", "initial", "traced", "traced-pinhole", "skyline", "thin", "wrong", "wrong-camera"]
+ALL_MODES = ["plain", "camera", "initial", "traced", "traced-pinhole", "skyline", "thin", "wrong", "wrong-camera",
+             "wrong-initial"]
 THIN_SKY_PX = 10  # the thin mode's sky left above the traced horizon's highest point
 # Positions 2-10 km away (bearing deg, distance m) and other regions' DEMs
 # (with a position inside each), for the false-registration probes.
@@ -67,6 +75,7 @@ OTHER_DEMS = [("mt_rainier_90m.tif", 46.80, -121.73), ("N47E009.hgt", 47.25, 9.3
 # The perturbed mode's changes: none should change the answer.
 PERTURBATIONS = [[], ["--step", "0.08"], ["--step", "0.09"], ["--step", "0.12"], ["--step", "0.125"],
                  ["--refraction", "0.10"], ["--refraction", "0.16"]]
+INITIAL_OFFSETS = [(2, 0), (-2, 0), (0, 2), (0, -2)]  # --initial: degrees off the truth in azimuth, pitch
 GATE_RATIO = 1.4  # RegistrationOptions::min_ambiguity_ratio, for the near-miss count
 
 
@@ -250,7 +259,7 @@ def main():
     overlay_dir = opt("--overlay-dir")
     jobs = int(opt("--jobs", "2"))
     floors = {"plain": 12, "camera": 12, "initial": 13, "skyline": 0.9, "thin": 0.9, "skyline-given": 0.95,
-              "thin-given": 0.95, "ring": 0, "ring-camera": 0, "noexif": 0, "reencode": 0}
+              "thin-given": 0.95, "ring": 0, "ring-camera": 0, "ring-initial": 0, "noexif": 0, "reencode": 0}
     for kv in (opt("--floors") or "").split(","):
         if "=" in kv:
             k, v = kv.split("=")
@@ -300,8 +309,7 @@ def main():
             print("FAIL: --camera registration misses its floor or has a false registration")
             failed = True
     if "initial" in modes:
-        offsets = [(2, 0), (-2, 0), (0, 2), (0, -2)]
-        jobs_list = [(p, o) for p in photos for o in offsets]
+        jobs_list = [(p, o) for p in photos for o in INITIAL_OFFSETS]
 
         def initial(po):
             (name, t, d), (daz, dp) = po
@@ -378,10 +386,11 @@ def main():
         if check and not (w >= floors["thin"] and g >= floors["thin-given"]):  # NaN (no OpenCV) fails too
             print("FAIL: skyline accuracy or coverage under a thin strip of sky misses its floor")
             failed = True
-    for mode in ("wrong", "wrong-camera"):
+    for mode in ("wrong", "wrong-camera", "wrong-initial"):
         if mode not in modes:
             continue
         with_camera = mode == "wrong-camera"
+        with_initial = mode == "wrong-initial"
         cameras = camera_files(photos, tmpdir) if with_camera else {}
         probes = []
         for p in photos:
@@ -392,12 +401,19 @@ def main():
                 if os.path.exists(os.path.join(shared, "dem", dem)):
                     probes.append((p, dem, dem, lat, lon, False))
 
-        def probe(x):
-            (name, t, d), label, dem, lat, lon, alt = x
+        def probe(ix):
+            i, ((name, t, d), label, dem, lat, lon, alt) = ix
             extra = ["--camera", cameras[name]] if with_camera else []
+            if with_initial:
+                # A fixed camera's approximate pose (the truth 2 deg off, the
+                # four offsets of mode initial in turn) given with a wrong
+                # position or DEM.
+                daz, dp = INITIAL_OFFSETS[i % len(INITIAL_OFFSETS)]
+                extra = [f"--initial={t['yaw_deg'] + daz},{t['pitch_deg'] + dp},{t['roll_deg']},{t['hfov_deg']}"]
             return name, label, register(binary, shared, d, name, t, extra, dem=dem, lat=lat, lon=lon, alt=alt)
-        out = list(pool.map(probe, probes))
-        print(f"\n== wrong position (2-10 km away) or another region's DEM{' with --camera' if with_camera else ''}: "
+        out = list(pool.map(probe, enumerate(probes)))
+        print(f"\n== wrong position (2-10 km away) or another region's DEM"
+              f"{' with --camera' if with_camera else ''}{' with --initial 2 deg off the truth' if with_initial else ''}: "
               "all must be no_match ==")
         bad = [(n, l, r.get("status")) for n, l, r in out if r.get("status") == "registered"]
         errs = [(n, l, r.get("message")) for n, l, r in out if r.get("status") == "error"]
@@ -408,19 +424,23 @@ def main():
         print(f"probes: {len(out)}; registered (false): {len(bad)}; errors: {len(errs)}")
         if check and (bad or errs):
             failed = True
-    for ring_mode in [m for m in ("ring", "ring-camera") if m in modes]:
+    for ring_mode in [m for m in ("ring", "ring-camera", "ring-initial") if m in modes]:
         with_camera = ring_mode == "ring-camera"
+        with_initial = ring_mode == "ring-initial"
         cameras = camera_files(photos, tmpdir) if with_camera else {}
         probes = [(p, b, dist) + offset_position(p[1]["lat"], p[1]["lon"], b, dist)
                   for p in photos for b, dist in RING_OFFSETS]
 
-        def ring_probe(x):
-            (name, t, d), b, dist, lat, lon = x
+        def ring_probe(ix):
+            i, ((name, t, d), b, dist, lat, lon) = ix
             extra = ["--camera", cameras[name]] if with_camera else []
+            if with_initial:  # as wrong-initial: the truth 2 deg off, the four offsets in turn
+                daz, dp = INITIAL_OFFSETS[i % len(INITIAL_OFFSETS)]
+                extra = [f"--initial={t['yaw_deg'] + daz},{t['pitch_deg'] + dp},{t['roll_deg']},{t['hfov_deg']}"]
             return register(binary, shared, d, name, t, extra, lat=lat, lon=lon)
-        out = list(pool.map(ring_probe, probes))
+        out = list(pool.map(ring_probe, enumerate(probes)))
         print(f"\n== a ring of wrong positions: 12 bearings at 2, 3 and 5 km ({len(probes)} probes)"
-              f"{' with --camera' if with_camera else ''} ==")
+              f"{' with --camera' if with_camera else ''}{' with --initial 2 deg off the truth' if with_initial else ''} ==")
         print(f"{'photo':<24}{'registered':>11}{'false':>6}  false ones (bearing/km: error deg, cost ratio)")
         n_reg = n_false = 0
         errs = []

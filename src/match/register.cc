@@ -121,6 +121,8 @@ double PriorPenalty(const SensorPrior& prior, const CameraPose& pose) {
   return chi2;
 }
 
+}  // namespace
+
 bool WithinPrior(const RegistrationOptions& o, const CameraPose& pose) {
   const SensorPrior& pr = o.prior;
   const double g = pr.gate_sigmas;
@@ -130,6 +132,8 @@ bool WithinPrior(const RegistrationOptions& o, const CameraPose& pose) {
   if (pr.roll_deg) return std::abs(pose.roll_deg - *pr.roll_deg) <= g * pr.inclinometer_sigma_deg + 1.0;
   return std::abs(pose.roll_deg) <= o.max_abs_roll_deg;
 }
+
+namespace {
 
 struct Candidate {
   Pose4 pose;

@@ -190,6 +190,11 @@ Registration Register(const Skyline& skyline, const HorizonProfile& horizon, con
 Registration RefinePose(const Skyline& skyline, const HorizonProfile& horizon, const CameraPose& start, double focal_px,
                         bool fix_focal, const RegistrationOptions& options, double start_noise_px = 1.0);
 
+// Whether `pose` lies inside the gate of options.prior (gate_sigmas of each
+// angle given; the roll within max_abs_roll_deg when no roll is given): the
+// hypotheses the search keeps.
+bool WithinPrior(const RegistrationOptions& options, const CameraPose& pose);
+
 // Signed pixel distance from the image point (x, y) to the horizon projected
 // with `pose` and `intrinsics`, measured across the projected silhouette:
 // positive when the point lies below it (in the terrain). For diagnostics

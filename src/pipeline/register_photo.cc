@@ -201,9 +201,36 @@ PhotoRegistration RegisterPhoto(const Site& site, const cv::Mat& image_in, const
     // The local fit only where the search fitted no pose: where it did and
     // refused it (a rival nearby, too large a residual), a fit from the start
     // would walk into that rival's basin and, judged alone, pass.
-    if (!r.registered && !(r.focal_px > 0.0))
+    if (!r.registered && !(r.focal_px > 0.0)) {
       r = RefinePose(out.skyline, horizon, start, FocalFromHfovPx(po.initial->hfov_deg, image.cols), hfov_given, ro,
                      50.0);
+      // ... which must end where the search would have looked: a fit that
+      // walks tens of degrees from the start has found some other horizon
+      // (from a wrong position or DEM, 32 deg away and judged alone, it
+      // passed every gate).
+      const double hfov = r.focal_px > 0.0 ? HfovFromFocalDeg(r.focal_px, image.cols) : NAN;
+      if (r.registered && (!WithinPrior(constrained, r.pose) || (!hfov_given && !(hfov >= constrained.min_hfov_deg &&
+                                                                                  hfov <= constrained.max_hfov_deg)))) {
+        r.registered = false;
+        r.message = "the local fit from --initial ended outside the pose given (" +
+                    std::to_string(std::lround(constrained.prior.gate_sigmas * kInitialSigmaDeg)) +
+                    " deg, the opening angle 5%): another horizon fits, not the one expected";
+      }
+    }
+    if (po.check_position) {
+      // A pose given within a few degrees leaves the search almost no rival
+      // to compare with, so the ambiguity test that refuses a wrong position's
+      // or DEM's pose goes blind: from 2-5 km off, 4 of 468 ring probes
+      // registered 1.3-6 deg off near the pose given (their searches over the
+      // whole horizon, 0). The orientation given cannot vouch for the
+      // position: unless it is trusted (--trust-position), the search with
+      // no prior must register, inside the prior's gate; its pose is the
+      // answer (the skyline's own, which the prior then only confirms; also
+      // when the search near the pose given refused it).
+      RegistrationOptions free = ro;
+      free.prior = SensorPrior{};
+      r = ConfirmedWithoutPrior(std::move(r), RegisterImage(image, out.skyline, horizon, free), constrained);
+    }
   }
   r.message += UnknownFovHint(r, out.fov_source, image.cols);
   if (po.refine_position) RefinePhotoPosition(site, image, *po.refine_position, ro, out, pool);
@@ -276,10 +303,29 @@ void RefinePhotoPosition(const Site& site, const cv::Mat& image, const PositionO
   out.position_ms = MsSince(t0);
 }
 
+Registration ConfirmedWithoutPrior(Registration near, Registration alone, const RegistrationOptions& constrained) {
+  if (alone.registered && WithinPrior(constrained, alone.pose)) {
+    alone.message += " (the pose given confirmed)";
+    return alone;
+  }
+  if (near.registered) {
+    near.registered = false;
+    near.message = "the pose near --initial is not the skyline's own: searched with no prior, " +
+                   (alone.registered ? std::string("it registers outside the pose given") : alone.message) +
+                   " (a surveyed position: --trust-position lets the pose given decide)";
+  }
+  return near;
+}
+
 Registration RegisterImage(const cv::Mat& image, const Skyline& skyline, const HorizonProfile& horizon,
                            const RegistrationOptions& options) {
   Registration r = Register(skyline, horizon, options);
-  if (!r.registered)
+  // No second look under a prior: its rivals are the prior's (a pose within
+  // a few degrees), and the re-read that helps any pose then let a wrong
+  // position's pose through that the whole-horizon search refuses.
+  const SensorPrior& pr = options.prior;
+  const bool prior = pr.compass_deg || pr.pitch_deg || pr.roll_deg;
+  if (!r.registered && !prior)
     if (auto again = RecheckWithGuidedSkyline(image, skyline, horizon, r, options); again && again->registered)
       return *again;
   return r;

@@ -191,6 +191,55 @@ TEST(RegisterPhoto, RegistersARenderedViewAndReportsIt) {
   EXPECT_THROW(RegisterPhoto(site, cv::Mat(4, 4, CV_8UC3), {}), InvalidArgument);
 }
 
+TEST(ConfirmedWithoutPrior, ThePoseNearTheOneGivenStandsOnlyWhenTheSearchAloneRegistersThere) {
+  RegistrationOptions constrained;
+  constrained.prior.compass_deg = 60.0, constrained.prior.pitch_deg = -4.0, constrained.prior.roll_deg = 1.5;
+  constrained.prior.compass_sigma_deg = constrained.prior.inclinometer_sigma_deg = 2.0;  // gate +-6 deg
+  Registration near;
+  near.registered = true, near.message = "registered", near.pose = {64.0, -4.0, 1.5};  // inside the gate
+  Registration alone;
+  // Searched alone, refused (a rival elsewhere fits almost as well): near
+  // is refused too, saying why.
+  alone.registered = false, alone.message = "ambiguous: another pose fits almost as well (cost ratio 1.1)";
+  Registration r = ConfirmedWithoutPrior(near, alone, constrained);
+  EXPECT_FALSE(r.registered);
+  EXPECT_NE(r.message.find("cost ratio 1.1"), std::string::npos) << r.message;
+  EXPECT_NE(r.message.find("--trust-position"), std::string::npos) << r.message;
+  // Registered alone but outside the pose given (8 deg off): refused.
+  alone.registered = true, alone.message = "registered", alone.pose = {68.5, -4.0, 1.5};
+  r = ConfirmedWithoutPrior(near, alone, constrained);
+  EXPECT_FALSE(r.registered);
+  EXPECT_NE(r.message.find("outside the pose given"), std::string::npos) << r.message;
+  // Registered alone inside the gate: its pose is the answer, also when
+  // the search near the pose given refused it.
+  alone.pose = {60.3, -4.2, 1.4};
+  for (const bool near_registered : {true, false}) {
+    near.registered = near_registered;
+    r = ConfirmedWithoutPrior(near, alone, constrained);
+    EXPECT_TRUE(r.registered);
+    EXPECT_DOUBLE_EQ(r.pose.azimuth_deg, 60.3);
+    EXPECT_NE(r.message.find("confirmed"), std::string::npos) << r.message;
+  }
+  // Neither registered: near's own reason stays.
+  near.registered = false, near.message = "only 40% of the skyline fits the DEM horizon";
+  alone.registered = false;
+  EXPECT_EQ(ConfirmedWithoutPrior(near, alone, constrained).message, near.message);
+}
+
+TEST(RegisterPhoto, AnInitialPoseIsConfirmedOrTrusted) {
+  RenderedRing scene;
+  PhotoOptions po;
+  po.pinhole = true;
+  po.initial = InitialPose{42.0, 1.5, -0.8, 50.0};
+  for (const bool trusted : {false, true}) {
+    if (trusted) po.check_position.reset();
+    const PhotoRegistration r = RegisterPhoto(scene.site, scene.photo, po, &scene.pool);
+    ASSERT_TRUE(r.registration.registered) << r.registration.message;
+    EXPECT_NEAR(AngDiffDeg(r.registration.pose.azimuth_deg, scene.truth.azimuth_deg), 0.0, 0.1);
+    EXPECT_EQ(r.registration.message.find("confirmed") != std::string::npos, !trusted) << r.registration.message;
+  }
+}
+
 TEST(PositionCheck, PassesTheTruePositionAndRefusesOneTwoKilometresOff) {
   RenderedRing scene;
   const Site& site = scene.site;
