@@ -47,6 +47,9 @@ Modes (each a per-photo table and a summary):
             truth (--floors ring-camera=N)
   ring-initial  (not in the default set) the same ring with --initial 2 deg
             off the truth, as wrong-initial (--floors ring-initial=N)
+  ring-sensors  (not in the default set) the same ring with --sensors: a
+            compass and inclinometer reading the truth 2 deg off (priors of
+            15 and 2 deg; --floors ring-sensors=N)
   perturbed (not in the default set; about 2 minutes) plain and wrong again
             under 6 harmless changes of the horizon's sampling (--step 0.08,
             0.09, 0.12, 0.125) and refraction (--refraction 0.10, 0.16) as
@@ -147,6 +150,19 @@ def camera_files(photos, tmpdir):
     for name, t, _ in photos:
         paths[name] = os.path.join(tmpdir, name + ".camera.json")
         camera_file(t, paths[name])
+    return paths
+
+
+def sensors_files(photos, tmpdir):
+    """Per photo and INITIAL_OFFSETS entry, a --sensors file: a compass and
+    an inclinometer reading the truth that far off (a phone's or a
+    station's sensors). Returns {(name, i): path}."""
+    paths = {}
+    for name, t, _ in photos:
+        for i, (daz, dp) in enumerate(INITIAL_OFFSETS):
+            paths[(name, i)] = os.path.join(tmpdir, f"{name}.{i}.sensors.json")
+            json.dump({"compass_yaw_deg": t["yaw_deg"] + daz, "inclinometer_pitch_deg": t["pitch_deg"] + dp,
+                       "inclinometer_roll_deg": t["roll_deg"]}, open(paths[(name, i)], "w"))
     return paths
 
 
@@ -259,7 +275,7 @@ def main():
     overlay_dir = opt("--overlay-dir")
     jobs = int(opt("--jobs", "2"))
     floors = {"plain": 12, "camera": 12, "initial": 13, "skyline": 0.9, "thin": 0.9, "skyline-given": 0.95,
-              "thin-given": 0.95, "ring": 0, "ring-camera": 0, "ring-initial": 0, "noexif": 0, "reencode": 0}
+              "thin-given": 0.95, "ring": 0, "ring-camera": 0, "ring-initial": 0, "ring-sensors": 0, "noexif": 0, "reencode": 0}
     for kv in (opt("--floors") or "").split(","):
         if "=" in kv:
             k, v = kv.split("=")
@@ -424,10 +440,12 @@ def main():
         print(f"probes: {len(out)}; registered (false): {len(bad)}; errors: {len(errs)}")
         if check and (bad or errs):
             failed = True
-    for ring_mode in [m for m in ("ring", "ring-camera", "ring-initial") if m in modes]:
+    for ring_mode in [m for m in ("ring", "ring-camera", "ring-initial", "ring-sensors") if m in modes]:
         with_camera = ring_mode == "ring-camera"
         with_initial = ring_mode == "ring-initial"
+        with_sensors = ring_mode == "ring-sensors"
         cameras = camera_files(photos, tmpdir) if with_camera else {}
+        sensors = sensors_files(photos, tmpdir) if with_sensors else {}
         probes = [(p, b, dist) + offset_position(p[1]["lat"], p[1]["lon"], b, dist)
                   for p in photos for b, dist in RING_OFFSETS]
 
@@ -437,10 +455,13 @@ def main():
             if with_initial:  # as wrong-initial: the truth 2 deg off, the four offsets in turn
                 daz, dp = INITIAL_OFFSETS[i % len(INITIAL_OFFSETS)]
                 extra = [f"--initial={t['yaw_deg'] + daz},{t['pitch_deg'] + dp},{t['roll_deg']},{t['hfov_deg']}"]
+            if with_sensors:  # a compass and inclinometer reading the truth 2 deg off
+                extra = ["--sensors", sensors[(name, i % len(INITIAL_OFFSETS))]]
             return register(binary, shared, d, name, t, extra, lat=lat, lon=lon)
         out = list(pool.map(ring_probe, enumerate(probes)))
         print(f"\n== a ring of wrong positions: 12 bearings at 2, 3 and 5 km ({len(probes)} probes)"
-              f"{' with --camera' if with_camera else ''}{' with --initial 2 deg off the truth' if with_initial else ''} ==")
+              f"{' with --camera' if with_camera else ''}{' with --initial 2 deg off the truth' if with_initial else ''}"
+              f"{' with --sensors 2 deg off the truth' if with_sensors else ''} ==")
         print(f"{'photo':<24}{'registered':>11}{'false':>6}  false ones (bearing/km: error deg, cost ratio)")
         n_reg = n_false = 0
         errs = []

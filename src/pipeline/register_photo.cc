@@ -320,12 +320,7 @@ Registration ConfirmedWithoutPrior(Registration near, Registration alone, const 
 Registration RegisterImage(const cv::Mat& image, const Skyline& skyline, const HorizonProfile& horizon,
                            const RegistrationOptions& options) {
   Registration r = Register(skyline, horizon, options);
-  // No second look under a prior: its rivals are the prior's (a pose within
-  // a few degrees), and the re-read that helps any pose then let a wrong
-  // position's pose through that the whole-horizon search refuses.
-  const SensorPrior& pr = options.prior;
-  const bool prior = pr.compass_deg || pr.pitch_deg || pr.roll_deg;
-  if (!r.registered && !prior)
+  if (!r.registered)
     if (auto again = RecheckWithGuidedSkyline(image, skyline, horizon, r, options); again && again->registered)
       return *again;
   return r;

@@ -139,9 +139,7 @@ void RefinePhotoPosition(const Site& site, const cv::Mat& image, const PositionO
 Registration ConfirmedWithoutPrior(Registration near, Registration alone, const RegistrationOptions& constrained);
 
 // Register() of the image's skyline, then RecheckWithGuidedSkyline() when
-// it is a near miss. Under a prior (a compass, an inclinometer, --initial)
-// without the re-read: the re-read helps any pose, and the prior's rivals
-// are too few to tell.
+// it is a near miss.
 Registration RegisterImage(const cv::Mat& image, const Skyline& skyline, const HorizonProfile& horizon,
                            const RegistrationOptions& options);
 
