@@ -182,10 +182,7 @@ PhotoRegistration RegisterPhoto(const Site& site, const cv::Mat& image_in, const
     r = RegisterImage(image, out.skyline, horizon, ro);  // with a second look at a near miss
   } else {
     // A known approximate pose (a fixed camera, a pose a few degrees off):
-    // the search constrained to it (priors of a few degrees, the opening
-    // angle within 5% unless given), else, when the search fitted no pose,
-    // the graduated local fit from it, which starts at a noise scale of
-    // 50 px per 1000 (about 2.5 deg at a 50-deg opening angle).
+    // priors of a few degrees, the opening angle within 5% unless given.
     const CameraPose start{WrapAzimuthDeg(po.initial->azimuth_deg), po.initial->pitch_deg, po.initial->roll_deg};
     RegistrationOptions constrained = ro;
     constrained.prior.compass_deg = start.azimuth_deg;
@@ -197,39 +194,38 @@ PhotoRegistration RegisterPhoto(const Site& site, const cv::Mat& image_in, const
     if (!hfov_given)
       constrained.min_hfov_deg = po.initial->hfov_deg * 0.95,
       constrained.max_hfov_deg = std::min(169.0, po.initial->hfov_deg * 1.05);
-    r = RegisterImage(image, out.skyline, horizon, constrained);
-    // The local fit only where the search fitted no pose: where it did and
-    // refused it (a rival nearby, too large a residual), a fit from the start
-    // would walk into that rival's basin and, judged alone, pass.
-    if (!r.registered && !(r.focal_px > 0.0)) {
-      r = RefinePose(out.skyline, horizon, start, FocalFromHfovPx(po.initial->hfov_deg, image.cols), hfov_given, ro,
-                     50.0);
-      // ... which must end where the search would have looked: a fit that
-      // walks tens of degrees from the start has found some other horizon
-      // (from a wrong position or DEM, 32 deg away and judged alone, it
-      // passed every gate).
-      const double hfov = r.focal_px > 0.0 ? HfovFromFocalDeg(r.focal_px, image.cols) : NAN;
-      if (r.registered && (!WithinPrior(constrained, r.pose) || (!hfov_given && !(hfov >= constrained.min_hfov_deg &&
-                                                                                  hfov <= constrained.max_hfov_deg)))) {
-        r.registered = false;
-        r.message = "the local fit from --initial ended outside the pose given (" +
-                    std::to_string(std::lround(constrained.prior.gate_sigmas * kInitialSigmaDeg)) +
-                    " deg, the opening angle 5%): another horizon fits, not the one expected";
-      }
-    }
     if (po.check_position) {
-      // A pose given within a few degrees leaves the search almost no rival
-      // to compare with, so the ambiguity test that refuses a wrong position's
-      // or DEM's pose goes blind: from 2-5 km off, 4 of 468 ring probes
-      // registered 1.3-6 deg off near the pose given (their searches over the
-      // whole horizon, 0). The orientation given cannot vouch for the
-      // position: unless it is trusted (--trust-position), the search with
-      // no prior must register, inside the prior's gate; its pose is the
-      // answer (the skyline's own, which the prior then only confirms; also
-      // when the search near the pose given refused it).
+      // The pose given cannot vouch for the position: so close to it the
+      // search has almost no rival, and the ambiguity test that refuses a
+      // wrong position's or DEM's pose goes blind (searched near the pose
+      // given, 2 of 91 wrong probes and 4 of 468 ring probes of the real
+      // photos registered 1.3-32 deg off; searched over the whole horizon,
+      // none). Unless the position is trusted, the search with no prior
+      // decides and the pose given only vetoes (ConfirmedWithoutPrior).
       RegistrationOptions free = ro;
       free.prior = SensorPrior{};
-      r = ConfirmedWithoutPrior(std::move(r), RegisterImage(image, out.skyline, horizon, free), constrained);
+      r = ConfirmedWithoutPrior(RegisterImage(image, out.skyline, horizon, free), constrained);
+    } else {
+      // A surveyed position (--trust-position): the search constrained to
+      // the pose given, else, when that search fitted no pose, the graduated
+      // local fit from it, which starts at a noise scale of 50 px per 1000
+      // (about 2.5 deg at a 50-deg opening angle). The local fit only where
+      // the search fitted no pose: where it did and refused it (a rival
+      // nearby, too large a residual), a fit from the start would walk into
+      // that rival's basin and, judged alone, pass.
+      r = RegisterImage(image, out.skyline, horizon, constrained);
+      if (!r.registered && !(r.focal_px > 0.0)) {
+        r = RefinePose(out.skyline, horizon, start, FocalFromHfovPx(po.initial->hfov_deg, image.cols), hfov_given, ro,
+                       50.0);
+        // ... which must end inside the gate searched (from the Rainier DEM
+        // it walked 32 deg and passed).
+        if (r.registered && !WithinPose(constrained, r)) {
+          r.registered = false;
+          r.message = "the local fit from --initial ended outside the pose given (" +
+                      std::to_string(std::lround(constrained.prior.gate_sigmas * kInitialSigmaDeg)) +
+                      " deg, the opening angle 10%): another horizon fits, not the one expected";
+        }
+      }
     }
   }
   r.message += UnknownFovHint(r, out.fov_source, image.cols);
@@ -303,18 +299,26 @@ void RefinePhotoPosition(const Site& site, const cv::Mat& image, const PositionO
   out.position_ms = MsSince(t0);
 }
 
-Registration ConfirmedWithoutPrior(Registration near, Registration alone, const RegistrationOptions& constrained) {
-  if (alone.registered && WithinPrior(constrained, alone.pose)) {
+bool WithinPose(const RegistrationOptions& constrained, const Registration& r) {
+  if (!WithinPrior(constrained, r.pose)) return false;
+  // The opening angles as the search admits them (5% beyond the window).
+  const double hfov = r.focal_px > 0.0 ? r.hfov_deg : NAN;
+  return hfov >= constrained.min_hfov_deg * 0.95 && hfov <= constrained.max_hfov_deg * 1.05;
+}
+
+Registration ConfirmedWithoutPrior(Registration alone, const RegistrationOptions& constrained) {
+  if (!alone.registered) {
+    alone.message += " (searched with no prior: the pose given cannot vouch for the position; --trust-position "
+                     "lets it decide)";
+  } else if (!WithinPose(constrained, alone)) {
+    alone.registered = false;
+    alone.message = "the skyline registers outside the pose given by --initial (" +
+                    std::to_string(std::lround(constrained.prior.gate_sigmas * constrained.prior.compass_sigma_deg)) +
+                    " deg, the opening angle 10%): another horizon, or another position";
+  } else {
     alone.message += " (the pose given confirmed)";
-    return alone;
   }
-  if (near.registered) {
-    near.registered = false;
-    near.message = "the pose near --initial is not the skyline's own: searched with no prior, " +
-                   (alone.registered ? std::string("it registers outside the pose given") : alone.message) +
-                   " (a surveyed position: --trust-position lets the pose given decide)";
-  }
-  return near;
+  return alone;
 }
 
 Registration RegisterImage(const cv::Mat& image, const Skyline& skyline, const HorizonProfile& horizon,

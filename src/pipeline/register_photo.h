@@ -128,15 +128,19 @@ PhotoRegistration RegisterPhoto(const Site& site, const cv::Mat& image, const Ph
 void RefinePhotoPosition(const Site& site, const cv::Mat& image, const PositionOptions& position_options,
                          const RegistrationOptions& ro, PhotoRegistration& out, ThreadPool* pool = nullptr);
 
-// PhotoOptions::initial without a trusted position: `near`, registered (or
-// not) by the search constrained to the pose given (`constrained`, its
-// prior), stands only when the search with no prior, `alone`, registers
-// too, inside the prior's gate (WithinPrior); `alone` is then the answer.
-// The prior leaves the search almost no rival, so from a wrong position or
-// DEM its ambiguity test went blind (4 of 468 ring probes of the real
-// photos registered 1.3-6 deg off). A refused `near` says why; an
-// unregistered one keeps its message.
-Registration ConfirmedWithoutPrior(Registration near, Registration alone, const RegistrationOptions& constrained);
+// Whether registration r lies inside the pose given as PhotoOptions::initial
+// (`constrained`: its prior's gate, WithinPrior, and its opening angles as
+// the search admits them, 5% beyond min_hfov_deg .. max_hfov_deg).
+bool WithinPose(const RegistrationOptions& constrained, const Registration& r);
+
+// PhotoOptions::initial without a trusted position: `alone`, registered (or
+// not) by the search with no prior, stands only inside the pose given
+// (WithinPose); a registration outside is refused, and each answer says
+// which way it went. Searched near the pose given, the search has almost no
+// rival and its ambiguity test, what refuses most wrong positions' poses,
+// goes blind (4 of 468 ring probes of the real photos registered 1.3-6 deg
+// off).
+Registration ConfirmedWithoutPrior(Registration alone, const RegistrationOptions& constrained);
 
 // Register() of the image's skyline, then RecheckWithGuidedSkyline() when
 // it is a near miss.

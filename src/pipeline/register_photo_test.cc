@@ -191,39 +191,36 @@ TEST(RegisterPhoto, RegistersARenderedViewAndReportsIt) {
   EXPECT_THROW(RegisterPhoto(site, cv::Mat(4, 4, CV_8UC3), {}), InvalidArgument);
 }
 
-TEST(ConfirmedWithoutPrior, ThePoseNearTheOneGivenStandsOnlyWhenTheSearchAloneRegistersThere) {
+TEST(ConfirmedWithoutPrior, TheSearchWithNoPriorDecidesAndThePoseGivenVetoes) {
   RegistrationOptions constrained;
   constrained.prior.compass_deg = 60.0, constrained.prior.pitch_deg = -4.0, constrained.prior.roll_deg = 1.5;
   constrained.prior.compass_sigma_deg = constrained.prior.inclinometer_sigma_deg = 2.0;  // gate +-6 deg
-  Registration near;
-  near.registered = true, near.message = "registered", near.pose = {64.0, -4.0, 1.5};  // inside the gate
+  constrained.min_hfov_deg = 47.5, constrained.max_hfov_deg = 52.5;                     // 50 deg +-5%
   Registration alone;
-  // Searched alone, refused (a rival elsewhere fits almost as well): near
-  // is refused too, saying why.
+  alone.focal_px = 500.0, alone.hfov_deg = 50.5;
+  // Refused alone (a rival elsewhere fits almost as well): refused, saying
+  // why and what would let the pose given decide.
   alone.registered = false, alone.message = "ambiguous: another pose fits almost as well (cost ratio 1.1)";
-  Registration r = ConfirmedWithoutPrior(near, alone, constrained);
+  Registration r = ConfirmedWithoutPrior(alone, constrained);
   EXPECT_FALSE(r.registered);
   EXPECT_NE(r.message.find("cost ratio 1.1"), std::string::npos) << r.message;
   EXPECT_NE(r.message.find("--trust-position"), std::string::npos) << r.message;
-  // Registered alone but outside the pose given (8 deg off): refused.
-  alone.registered = true, alone.message = "registered", alone.pose = {68.5, -4.0, 1.5};
-  r = ConfirmedWithoutPrior(near, alone, constrained);
-  EXPECT_FALSE(r.registered);
-  EXPECT_NE(r.message.find("outside the pose given"), std::string::npos) << r.message;
-  // Registered alone inside the gate: its pose is the answer, also when
-  // the search near the pose given refused it.
-  alone.pose = {60.3, -4.2, 1.4};
-  for (const bool near_registered : {true, false}) {
-    near.registered = near_registered;
-    r = ConfirmedWithoutPrior(near, alone, constrained);
-    EXPECT_TRUE(r.registered);
-    EXPECT_DOUBLE_EQ(r.pose.azimuth_deg, 60.3);
-    EXPECT_NE(r.message.find("confirmed"), std::string::npos) << r.message;
+  // Registered inside the gate: the answer, confirmed.
+  alone.registered = true, alone.message = "registered", alone.pose = {64.0, -4.2, 1.4};
+  r = ConfirmedWithoutPrior(alone, constrained);
+  EXPECT_TRUE(r.registered);
+  EXPECT_DOUBLE_EQ(r.pose.azimuth_deg, 64.0);
+  EXPECT_NE(r.message.find("confirmed"), std::string::npos) << r.message;
+  // Registered 8 deg off in azimuth, or 9 deg off in pitch, or at a 60 deg
+  // opening angle: outside the pose given, refused.
+  for (const auto& [pose, hfov] : {std::pair{CameraPose{68.5, -4.0, 1.5}, 50.5},
+                                   std::pair{CameraPose{60.0, 5.0, 1.5}, 50.5},
+                                   std::pair{CameraPose{60.0, -4.0, 1.5}, 60.0}}) {
+    alone.pose = pose, alone.hfov_deg = hfov;
+    r = ConfirmedWithoutPrior(alone, constrained);
+    EXPECT_FALSE(r.registered) << pose.azimuth_deg << " " << pose.pitch_deg << " " << hfov;
+    EXPECT_NE(r.message.find("outside the pose given"), std::string::npos) << r.message;
   }
-  // Neither registered: near's own reason stays.
-  near.registered = false, near.message = "only 40% of the skyline fits the DEM horizon";
-  alone.registered = false;
-  EXPECT_EQ(ConfirmedWithoutPrior(near, alone, constrained).message, near.message);
 }
 
 TEST(RegisterPhoto, AnInitialPoseIsConfirmedOrTrusted) {
