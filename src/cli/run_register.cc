@@ -57,7 +57,8 @@ void AddRegisterCommand(CLI::App& app, RegisterArgs& a) {
   c->add_option("--max-distance", a.max_distance, "Terrain farther than this is ignored, metres")
       ->capture_default_str();
   c->add_option("--initial", a.initial,
-                "Known approximate pose AZ,PITCH,ROLL,HFOV (degrees): refine it instead of searching (fixed cameras)");
+                "Known approximate pose AZ,PITCH,ROLL,HFOV (degrees, fixed cameras): a registration more than 6 deg or "
+                "10% of opening angle from it is refused; with --trust-position it is refined instead of searching");
   c->add_option("--camera", a.camera,
                 "Known intrinsics: OpenCV calibration YAML/JSON or {\"focal_px\", \"cx_px\", \"cy_px\", \"k\": [...], "
                 "\"p\": [...]} (DESIGN.md pixels); used exactly");
