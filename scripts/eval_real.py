@@ -24,6 +24,8 @@ Modes (each a per-photo table and a summary):
             pose is known, given the wrong position or DEM. The prior keeps
             the search near the pose given, where a wrong horizon's pose can
             fit with no rival (before the fix: 2 false of 91)
+  wrong-noexif  (not in the default set) the same probes with --no-exif
+            (the opening angle unknown, 10-120 deg searched)
   noexif    (not in the default set) plain on the pixels alone: each photo
             decoded and saved as PNG without its EXIF, so no focal length or
             camera model narrows the opening angles searched (10-120 deg): a
@@ -47,6 +49,10 @@ Modes (each a per-photo table and a summary):
             truth (--floors ring-camera=N)
   ring-initial  (not in the default set) the same ring with --initial 2 deg
             off the truth, as wrong-initial (--floors ring-initial=N)
+  ring-noexif  (not in the default set) the same ring with --no-exif: the
+            opening angle unknown, 10-120 deg searched (a webcam frame or a
+            stripped upload given the wrong coordinates; --floors
+            ring-noexif=N)
   sensors   (not in the default set) --sensors files reading the truth 2 deg
             off (as initial's four offsets; a compass prior of 15 deg, an
             inclinometer of 2): runs within 0.5 deg and photos registered
@@ -279,7 +285,7 @@ def main():
     overlay_dir = opt("--overlay-dir")
     jobs = int(opt("--jobs", "2"))
     floors = {"plain": 12, "camera": 12, "initial": 13, "skyline": 0.9, "thin": 0.9, "skyline-given": 0.95,
-              "thin-given": 0.95, "ring": 0, "ring-camera": 0, "ring-initial": 0, "ring-sensors": 0, "sensors": 0, "noexif": 0, "reencode": 0}
+              "thin-given": 0.95, "ring": 0, "ring-camera": 0, "ring-initial": 0, "ring-sensors": 0, "ring-noexif": 0, "sensors": 0, "noexif": 0, "reencode": 0}
     for kv in (opt("--floors") or "").split(","):
         if "=" in kv:
             k, v = kv.split("=")
@@ -410,11 +416,12 @@ def main():
         if check and not (w >= floors["thin"] and g >= floors["thin-given"]):  # NaN (no OpenCV) fails too
             print("FAIL: skyline accuracy or coverage under a thin strip of sky misses its floor")
             failed = True
-    for mode in ("wrong", "wrong-camera", "wrong-initial"):
+    for mode in ("wrong", "wrong-camera", "wrong-initial", "wrong-noexif"):
         if mode not in modes:
             continue
         with_camera = mode == "wrong-camera"
         with_initial = mode == "wrong-initial"
+        with_noexif = mode == "wrong-noexif"
         cameras = camera_files(photos, tmpdir) if with_camera else {}
         probes = []
         for p in photos:
@@ -434,11 +441,13 @@ def main():
                 # position or DEM.
                 daz, dp = INITIAL_OFFSETS[i % len(INITIAL_OFFSETS)]
                 extra = [f"--initial={t['yaw_deg'] + daz},{t['pitch_deg'] + dp},{t['roll_deg']},{t['hfov_deg']}"]
+            if with_noexif:
+                extra = ["--no-exif"]
             return name, label, register(binary, shared, d, name, t, extra, dem=dem, lat=lat, lon=lon, alt=alt)
         out = list(pool.map(probe, enumerate(probes)))
         print(f"\n== wrong position (2-10 km away) or another region's DEM"
-              f"{' with --camera' if with_camera else ''}{' with --initial 2 deg off the truth' if with_initial else ''}: "
-              "all must be no_match ==")
+              f"{' with --camera' if with_camera else ''}{' with --initial 2 deg off the truth' if with_initial else ''}"
+              f"{' with --no-exif' if with_noexif else ''}: all must be no_match ==")
         bad = [(n, l, r.get("status")) for n, l, r in out if r.get("status") == "registered"]
         errs = [(n, l, r.get("message")) for n, l, r in out if r.get("status") == "error"]
         for n, l, s in bad:
@@ -448,10 +457,11 @@ def main():
         print(f"probes: {len(out)}; registered (false): {len(bad)}; errors: {len(errs)}")
         if check and (bad or errs):
             failed = True
-    for ring_mode in [m for m in ("ring", "ring-camera", "ring-initial", "ring-sensors") if m in modes]:
+    for ring_mode in [m for m in ("ring", "ring-camera", "ring-initial", "ring-sensors", "ring-noexif") if m in modes]:
         with_camera = ring_mode == "ring-camera"
         with_initial = ring_mode == "ring-initial"
         with_sensors = ring_mode == "ring-sensors"
+        with_noexif = ring_mode == "ring-noexif"
         cameras = camera_files(photos, tmpdir) if with_camera else {}
         sensors = sensors_files(photos, tmpdir) if with_sensors else {}
         probes = [(p, b, dist) + offset_position(p[1]["lat"], p[1]["lon"], b, dist)
@@ -465,11 +475,14 @@ def main():
                 extra = [f"--initial={t['yaw_deg'] + daz},{t['pitch_deg'] + dp},{t['roll_deg']},{t['hfov_deg']}"]
             if with_sensors:  # a compass and inclinometer reading the truth 2 deg off
                 extra = ["--sensors", sensors[(name, i % len(INITIAL_OFFSETS))]]
+            if with_noexif:  # the opening angle unknown: 10-120 deg searched
+                extra = ["--no-exif"]
             return register(binary, shared, d, name, t, extra, lat=lat, lon=lon)
         out = list(pool.map(ring_probe, enumerate(probes)))
         print(f"\n== a ring of wrong positions: 12 bearings at 2, 3 and 5 km ({len(probes)} probes)"
               f"{' with --camera' if with_camera else ''}{' with --initial 2 deg off the truth' if with_initial else ''}"
-              f"{' with --sensors 2 deg off the truth' if with_sensors else ''} ==")
+              f"{' with --sensors 2 deg off the truth' if with_sensors else ''}"
+              f"{' with --no-exif' if with_noexif else ''} ==")
         print(f"{'photo':<24}{'registered':>11}{'false':>6}  false ones (bearing/km: error deg, cost ratio)")
         n_reg = n_false = 0
         errs = []
