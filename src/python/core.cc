@@ -111,7 +111,8 @@ std::unique_ptr<PySite> MakeSite(double lat, double lon, const std::vector<std::
 py::object PyRegister(const py::object& image, const PySite& site, std::optional<double> hfov,
                     std::optional<std::pair<double, double>> hfov_range, const py::object& camera,
                     const py::object& sensors, std::optional<std::vector<double>> initial, bool pinhole,
-                    std::optional<bool> exif, bool refine_position, std::optional<double> position_sigma) {
+                    std::optional<bool> exif, bool refine_position, std::optional<double> position_sigma,
+                    bool trust_position) {
   const auto t0 = std::chrono::steady_clock::now();
   cv::Mat mat;
   PhotoOptions po;
@@ -139,6 +140,7 @@ py::object PyRegister(const py::object& image, const PySite& site, std::optional
     po.initial = ParseInitialPose(buf, "initial");
   }
   po.position_sigma_m = position_sigma;
+  if (trust_position) po.check_position.reset();
   if (refine_position) {
     po.refine_position = DefaultPositionOptions("arguments", false, position_sigma);
   }
@@ -281,9 +283,11 @@ PYBIND11_MODULE(_core, m) {
   m.def("register", &PyRegister, py::arg("image"), py::arg("site"), py::arg("hfov") = py::none(),
         py::arg("hfov_range") = py::none(), py::arg("camera") = py::none(), py::arg("sensors") = py::none(),
         py::arg("initial") = py::none(), py::arg("pinhole") = false, py::arg("exif") = py::none(),
-        py::arg("refine_position") = false, py::arg("position_sigma") = py::none(),
+        py::arg("refine_position") = false, py::arg("position_sigma") = py::none(), py::arg("trust_position") = false,
         "Registers a photo (numpy array or path) taken at `site`: the register JSON as a dict; with "
-        "refine_position, also the site's latitude, longitude and eye height (the \"position\" block).");
+        "refine_position, also the site's latitude, longitude and eye height (the \"position\" block); "
+        "trust_position (a surveyed camera, as register --trust-position) skips the position check and lets "
+        "`initial` decide instead of only vetoing.");
 
   m.def(
       "draw_overlay",

@@ -95,6 +95,24 @@ def test_register_equals_the_command_line(site, views):
     assert {k: x for k, x in r.items() if k not in drop} == {k: x for k, x in ref.items() if k not in drop}
 
 
+def test_initial_and_trust_position_equal_the_command_line(site, views):
+    v = views[1]
+    o = v["observer"]
+    az, pitch, roll, hfov = v["pose"]
+    initial = (az + 2.0, pitch, roll, hfov)
+    for trusted in (False, True):
+        cmd = [BIN, "register", v["image"], "--dem", JACKSBORO, "--lat", repr(o["lat"]), "--lon", repr(o["lon"]),
+               "--initial=" + ",".join(repr(x) for x in initial)] + (["--trust-position"] if trusted else [])
+        ref = json.loads(subprocess.run(cmd, capture_output=True, text=True, check=True).stdout)
+        r = horizonreg.register(v["image"], site, initial=initial, trust_position=trusted)
+        drop = ("timing_ms", "image")
+        assert {k: x for k, x in r.items() if k not in drop} == {k: x for k, x in ref.items() if k not in drop}
+        assert r["status"] == "registered", r["message"]
+        # Untrusted, the search with no prior decides and the pose given confirms it; trusted, no check.
+        assert ("confirmed" in r["message"]) == (not trusted)
+        assert ("position_check" in r and r["position_check"] is not None) == (not trusted)
+
+
 def test_refine_position_equals_the_command_line_and_batch(site, views, tmp_path):
     v = views[0]
     o = v["observer"]
