@@ -176,6 +176,33 @@ def sensors_files(photos, tmpdir):
     return paths
 
 
+# Variants of the probe runs: how each names itself in a table's title, the
+# arguments it adds (variant_args) and the files those read (variant_files).
+VARIANT_TITLES = {"": "", "camera": " with --camera", "initial": " with --initial 2 deg off the truth",
+                  "sensors": " with --sensors 2 deg off the truth", "noexif": " with --no-exif"}
+
+
+def variant_files(variant, photos, tmpdir):
+    """The camera or sensors files a variant's runs read, written before they run."""
+    if variant == "camera":
+        return camera_files(photos, tmpdir)
+    return sensors_files(photos, tmpdir) if variant == "sensors" else {}
+
+
+def variant_args(variant, name, t, i, files):
+    """The arguments run i of photo `name` (truth t) adds under `variant`:
+    the truth's camera; the truth 2 deg off as --initial or as sensors
+    (INITIAL_OFFSETS in turn); no EXIF."""
+    daz, dp = INITIAL_OFFSETS[i % len(INITIAL_OFFSETS)]
+    if variant == "camera":
+        return ["--camera", files[name]]
+    if variant == "initial":
+        return [f"--initial={t['yaw_deg'] + daz},{t['pitch_deg'] + dp},{t['roll_deg']},{t['hfov_deg']}"]
+    if variant == "sensors":
+        return ["--sensors", files[(name, i % len(INITIAL_OFFSETS))]]
+    return ["--no-exif"] if variant == "noexif" else []
+
+
 def traced_file(truth, path):
     json.dump({"width": truth["width"], "height": truth["height"], "y": truth["skyline_row"]}, open(path, "w"))
 
@@ -285,7 +312,8 @@ def main():
     overlay_dir = opt("--overlay-dir")
     jobs = int(opt("--jobs", "2"))
     floors = {"plain": 12, "camera": 12, "initial": 13, "skyline": 0.9, "thin": 0.9, "skyline-given": 0.95,
-              "thin-given": 0.95, "ring": 0, "ring-camera": 0, "ring-initial": 0, "ring-sensors": 0, "ring-noexif": 0, "sensors": 0, "noexif": 0, "reencode": 0}
+              "thin-given": 0.95, "ring": 0, "ring-camera": 0, "ring-initial": 0, "ring-sensors": 0, "ring-noexif": 0,
+              "sensors": 0, "noexif": 0, "reencode": 0}
     for kv in (opt("--floors") or "").split(","):
         if "=" in kv:
             k, v = kv.split("=")
@@ -326,24 +354,23 @@ def main():
             print("FAIL: no-prior registration misses its floor or has a false registration")
             failed = True
     if "camera" in modes:
+        files = variant_files("camera", photos, tmpdir)
+
         def with_camera(p):
-            path = os.path.join(tmpdir, p[0] + ".camera.json")
-            camera_file(p[1], path)
-            return p[0], p[1], register(binary, shared, p[2], p[0], p[1], ["--camera", path])
+            return p[0], p[1], register(binary, shared, p[2], p[0], p[1], variant_args("camera", p[0], p[1], 0, files))
         good, false, _, _ = pose_table("--camera from the truth's camera model", run_all(with_camera), 0.3)
         if check and (good < floors["camera"] or false):
             print("FAIL: --camera registration misses its floor or has a false registration")
             failed = True
     for mode in [m for m in ("initial", "sensors") if m in modes]:
         jobs_list = [(p, i) for p in photos for i in range(len(INITIAL_OFFSETS))]
-        sensors = sensors_files(photos, tmpdir) if mode == "sensors" else {}
+        files = variant_files(mode, photos, tmpdir)
 
         def initial(po):
             (name, t, d), i = po
             daz, dp = INITIAL_OFFSETS[i]
-            init = f"{t['yaw_deg'] + daz},{t['pitch_deg'] + dp},{t['roll_deg']},{t['hfov_deg']}"
-            extra = ["--sensors", sensors[(name, i)]] if mode == "sensors" else ["--initial=" + init]
-            return f"{name} {daz:+d}/{dp:+d}", t, register(binary, shared, d, name, t, extra)
+            return (f"{name} {daz:+d}/{dp:+d}", t,
+                    register(binary, shared, d, name, t, variant_args(mode, name, t, i, files)))
         rows = list(pool.map(initial, jobs_list))
         title = ("--initial 2 deg off (azimuth or pitch), no camera file" if mode == "initial" else
                  "--sensors: a compass and inclinometer 2 deg off (azimuth or pitch)")
@@ -419,10 +446,8 @@ def main():
     for mode in ("wrong", "wrong-camera", "wrong-initial", "wrong-noexif"):
         if mode not in modes:
             continue
-        with_camera = mode == "wrong-camera"
-        with_initial = mode == "wrong-initial"
-        with_noexif = mode == "wrong-noexif"
-        cameras = camera_files(photos, tmpdir) if with_camera else {}
+        variant = mode.partition("-")[2]
+        files = variant_files(variant, photos, tmpdir)
         probes = []
         for p in photos:
             for bearing, dist in WRONG_OFFSETS:
@@ -434,20 +459,11 @@ def main():
 
         def probe(ix):
             i, ((name, t, d), label, dem, lat, lon, alt) = ix
-            extra = ["--camera", cameras[name]] if with_camera else []
-            if with_initial:
-                # A fixed camera's approximate pose (the truth 2 deg off, the
-                # four offsets of mode initial in turn) given with a wrong
-                # position or DEM.
-                daz, dp = INITIAL_OFFSETS[i % len(INITIAL_OFFSETS)]
-                extra = [f"--initial={t['yaw_deg'] + daz},{t['pitch_deg'] + dp},{t['roll_deg']},{t['hfov_deg']}"]
-            if with_noexif:
-                extra = ["--no-exif"]
-            return name, label, register(binary, shared, d, name, t, extra, dem=dem, lat=lat, lon=lon, alt=alt)
+            return name, label, register(binary, shared, d, name, t, variant_args(variant, name, t, i, files), dem=dem,
+                                         lat=lat, lon=lon, alt=alt)
         out = list(pool.map(probe, enumerate(probes)))
-        print(f"\n== wrong position (2-10 km away) or another region's DEM"
-              f"{' with --camera' if with_camera else ''}{' with --initial 2 deg off the truth' if with_initial else ''}"
-              f"{' with --no-exif' if with_noexif else ''}: all must be no_match ==")
+        print(f"\n== wrong position (2-10 km away) or another region's DEM{VARIANT_TITLES[variant]}: "
+              "all must be no_match ==")
         bad = [(n, l, r.get("status")) for n, l, r in out if r.get("status") == "registered"]
         errs = [(n, l, r.get("message")) for n, l, r in out if r.get("status") == "error"]
         for n, l, s in bad:
@@ -458,31 +474,17 @@ def main():
         if check and (bad or errs):
             failed = True
     for ring_mode in [m for m in ("ring", "ring-camera", "ring-initial", "ring-sensors", "ring-noexif") if m in modes]:
-        with_camera = ring_mode == "ring-camera"
-        with_initial = ring_mode == "ring-initial"
-        with_sensors = ring_mode == "ring-sensors"
-        with_noexif = ring_mode == "ring-noexif"
-        cameras = camera_files(photos, tmpdir) if with_camera else {}
-        sensors = sensors_files(photos, tmpdir) if with_sensors else {}
+        variant = ring_mode.partition("-")[2]
+        files = variant_files(variant, photos, tmpdir)
         probes = [(p, b, dist) + offset_position(p[1]["lat"], p[1]["lon"], b, dist)
                   for p in photos for b, dist in RING_OFFSETS]
 
         def ring_probe(ix):
             i, ((name, t, d), b, dist, lat, lon) = ix
-            extra = ["--camera", cameras[name]] if with_camera else []
-            if with_initial:  # as wrong-initial: the truth 2 deg off, the four offsets in turn
-                daz, dp = INITIAL_OFFSETS[i % len(INITIAL_OFFSETS)]
-                extra = [f"--initial={t['yaw_deg'] + daz},{t['pitch_deg'] + dp},{t['roll_deg']},{t['hfov_deg']}"]
-            if with_sensors:  # a compass and inclinometer reading the truth 2 deg off
-                extra = ["--sensors", sensors[(name, i % len(INITIAL_OFFSETS))]]
-            if with_noexif:  # the opening angle unknown: 10-120 deg searched
-                extra = ["--no-exif"]
-            return register(binary, shared, d, name, t, extra, lat=lat, lon=lon)
+            return register(binary, shared, d, name, t, variant_args(variant, name, t, i, files), lat=lat, lon=lon)
         out = list(pool.map(ring_probe, enumerate(probes)))
         print(f"\n== a ring of wrong positions: 12 bearings at 2, 3 and 5 km ({len(probes)} probes)"
-              f"{' with --camera' if with_camera else ''}{' with --initial 2 deg off the truth' if with_initial else ''}"
-              f"{' with --sensors 2 deg off the truth' if with_sensors else ''}"
-              f"{' with --no-exif' if with_noexif else ''} ==")
+              f"{VARIANT_TITLES[variant]} ==")
         print(f"{'photo':<24}{'registered':>11}{'false':>6}  false ones (bearing/km: error deg, cost ratio)")
         n_reg = n_false = 0
         errs = []
