@@ -222,7 +222,7 @@ PhotoRegistration RegisterPhoto(const Site& site, const cv::Mat& image_in, const
         if (r.registered && !WithinPose(constrained, r)) {
           r.registered = false;
           r.message = "the local fit from --initial ended outside the pose given (" +
-                      std::to_string(std::lround(constrained.prior.gate_sigmas * kInitialSigmaDeg)) +
+                      std::to_string(std::lround(constrained.prior.gate_sigmas * constrained.prior.compass_sigma_deg)) +
                       " deg, the opening angle 10%): another horizon fits, not the one expected";
         }
       }
