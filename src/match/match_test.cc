@@ -241,6 +241,28 @@ TEST(Register, SurvivesNoiseAndAnOccluderSpike) {
   EXPECT_LT(r.azimuth_sigma_deg, 0.05);
 }
 
+// Over 40% of the columns the skyline's y lies on a far ridge 12 px above
+// the DEM's horizon, with the clearer edge on the horizon kept in y_alt:
+// the matching reads y_alt there, and the pose registers with its inliers
+// whole; the raised boundary alone misses in those columns.
+TEST(Register, TheMatchingReadsTheClearerEdgeUnderARaisedRidge) {
+  const HorizonProfile p = SyntheticHorizon(0.25);
+  const CameraPose pose{200.0, 0.8, 1.2};
+  const auto k = CameraIntrinsics::FromHfov(1024, 683, 45.0);
+  Skyline s = SkylineOf(p, pose, k);
+  s.y_alt.assign(s.width, NAN);
+  for (int c = 100; c < 510; ++c) s.y_alt[c] = s.y[c], s.y[c] -= 12.0;
+  const Registration r = Register(s, p, {});
+  ASSERT_TRUE(r.registered) << r.message;
+  EXPECT_NEAR(AngDiffDeg(r.pose.azimuth_deg, pose.azimuth_deg), 0.0, 0.01);
+  EXPECT_NEAR(r.pose.pitch_deg, pose.pitch_deg, 0.01);
+  EXPECT_GT(r.inlier_fraction, 0.95);
+  // A boundary off the horizon in those columns, read alone: they miss.
+  for (int c = 100; c < 510; ++c) s.y[c] = s.y_alt[c] + 12.0;
+  s.y_alt.clear();
+  EXPECT_LT(Register(s, p, {}).inlier_fraction, 0.8);
+}
+
 // The hypotheses and candidates are shared out among threads; any count
 // gives the same answer, to the bit.
 TEST(Register, SameResultForAnyThreadCount) {

@@ -306,7 +306,7 @@ double HorizonDistancePx(const HorizonProfile& horizon, const CameraPose& pose, 
                          double y) {
   const HorizonLookup lookup(horizon, DemErrorModel{});
   const Scorer scorer(lookup, DemErrorModel{}, 1.0, k.height, 0.25);
-  const ImageFrame frame(Skyline{k.width, k.height, {}, {}}, k);
+  const ImageFrame frame(Skyline{k.width, k.height, {}, {}, {}}, k);
   const auto uv = frame.Offset(x, y);
   if (!uv) return NAN;
   std::vector<Column> one(1);
@@ -366,10 +366,10 @@ Registration Register(const Skyline& skyline, const HorizonProfile& horizon, con
   const int half = std::max(2, static_cast<int>(std::lround(4 * px_scale)));
   std::vector<double> up(width, NAN), window;
   for (int i = 0; i < width; ++i) {
-    if (!std::isfinite(skyline.y[i])) continue;
+    if (!std::isfinite(skyline.MatchY(i))) continue;
     window.clear();
     for (int j = std::max(0, i - half); j <= std::min(width - 1, i + half); ++j)
-      if (std::isfinite(skyline.y[j])) window.push_back(skyline.y[j]);
+      if (std::isfinite(skyline.MatchY(j))) window.push_back(skyline.MatchY(j));
     std::nth_element(window.begin(), window.begin() + window.size() / 2, window.end());
     up[i] = -window[window.size() / 2];
   }

@@ -33,7 +33,7 @@ Profile SkylineProfile(const Skyline& skyline, double hfov_deg, double pitch_deg
     double ys[3];
     int m = 0;
     for (int c = static_cast<int>(std::floor(x)) - 1; c <= static_cast<int>(std::floor(x)) + 1; ++c)
-      if (c >= 0 && c < skyline.width && std::isfinite(skyline.y[c])) ys[m++] = skyline.y[c];
+      if (c >= 0 && c < skyline.width && std::isfinite(skyline.MatchY(c))) ys[m++] = skyline.MatchY(c);
     if (m == 0) {
       p.offset_deg.push_back(RadToDeg(std::atan2(x - cx, f * cp)));
       p.elevation_deg.push_back(NAN);

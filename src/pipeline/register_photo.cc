@@ -388,7 +388,7 @@ std::optional<Registration> RecheckWithGuidedSkyline(const cv::Mat& image, const
     const std::vector<double> pred = PredictedSkyline(horizon, pose, k);
     std::pair<Skyline, int> out{skyline, 0};
     for (int c = 0; c < w; ++c) {
-      const double p = pred[c], y = skyline.y[c];
+      const double p = pred[c], y = skyline.MatchY(c);
       if (!std::isfinite(p) || !std::isfinite(y) || y - p <= tau) continue;  // fits, lies above, or is hidden
       // Boundaries between rows r - 1 and r, above the extracted one.
       const int lo = std::max(6, static_cast<int>(std::floor(p - 2 * tau)));
@@ -399,6 +399,7 @@ std::optional<Registration> RecheckWithGuidedSkyline(const cv::Mat& image, const
           lo, hi, [&](int row) { return cv::norm(mean3(row, c) - mean3(row - 3, c)); }, scores);
       if (contrast < kMinStep || cv::norm(mean3(r - 3, c) - mean3(r - 6, c)) > 0.5 * kMinStep) continue;
       out.first.y[c] = yr;
+      if (c < static_cast<int>(out.first.y_alt.size())) out.first.y_alt[c] = NAN;  // re-read: one candidate
       out.first.confidence[c] = std::min(1.0, contrast / (4.0 * kMinStep));
       ++out.second;
     }

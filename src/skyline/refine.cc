@@ -24,6 +24,13 @@ constexpr float kSkyEndTexture = 3.0f;      // their texture over the fitted row
 constexpr int kSkyEndEdgeRows = 2;          // rows above the boundary left out of the texture (a sloping edge)
 constexpr float kSkyEndTextureFloor = 0.3f;
 
+// RaiseToSkyModelDeparture (at 1024 columns; rows scale with the width).
+constexpr int kDepartSearchRows = 20;     // how far above the boundary the ridge's top is sought
+constexpr int kDepartLineRows = 16;       // the rows above a candidate row fitted by a line
+constexpr float kDepartSigmas = 4.0f;     // departure from the model and from the line, in model sigmas
+constexpr float kDepartHeldShare = 0.8f;  // share of the rows down to the boundary that depart
+constexpr int kDepartMinRaise = 3;        // rows
+
 }  // namespace
 
 void GatherStrips(const cv::Mat& bgr, RefineStrips& strips) {
@@ -203,6 +210,109 @@ void RaiseToSkyEnd(const cv::Mat& bgr, const std::vector<uint8_t>& skip, std::ve
         return below > kSkyEndTexture * std::max(above, kSkyEndTextureFloor);
       };
       if (textured(tex) && textured(curl)) y[x] = first[x] + r - 0.5;
+      break;
+    }
+  }
+}
+
+void RaiseToSkyModelDeparture(const cv::Mat& bgr, const SkyModel& model, double work_per_px_x, double work_per_px_y,
+                              float deep_blue_b, const std::vector<uint8_t>& skip, std::vector<double>& y,
+                              std::vector<double>& alt) {
+  const int h = bgr.rows, w = bgr.cols;
+  alt.assign(w, NAN);
+  if (!model.fitted()) return;
+  const double scale = std::max(1.0, w / 1024.0);
+  const int search = static_cast<int>(std::lround(kDepartSearchRows * scale));
+  const int line = static_cast<int>(std::lround(kDepartLineRows * scale));
+  const double min_raise = kDepartMinRaise * scale;
+  // Per column, `count` rows of the column averaged with its neighbours,
+  // from `line` + 3 rows above the search to 2 rows below the boundary row.
+  const int count = search + line + 5;
+  std::vector<int> first(w, RefineStrips::kNoStrip);
+  for (int x = 0; x < w; ++x) {
+    if (!std::isfinite(y[x]) || skip[x]) continue;
+    const int yb = static_cast<int>(std::floor(y[x]));
+    if (yb - search - line - 3 >= 0 && yb + 2 <= h && y[x] - min_raise > 0) first[x] = yb - search - line - 3;
+  }
+  LabStrips lab;
+  lab.bgr.assign(3 * static_cast<size_t>(w) * count, 0);
+  for (int x = 0; x < w; ++x) {
+    if (first[x] == RefineStrips::kNoStrip) continue;
+    const int c0 = std::max(0, x - 1), c1 = std::min(w - 1, x + 1), n = c1 - c0 + 1;
+    uint8_t* out = lab.bgr.data() + 3 * static_cast<size_t>(x) * count;
+    for (int i = 0; i < count; ++i) {
+      const uint8_t* row = bgr.ptr<uint8_t>(first[x] + i);
+      for (int k = 0; k < 3; ++k) {
+        int sum = 0;
+        for (int c = c0; c <= c1; ++c) sum += row[3 * c + k];
+        out[3 * i + k] = static_cast<uint8_t>((sum + n / 2) / n);
+      }
+    }
+  }
+  lab.Convert();
+  const float inv = 1.0f / model.scale();
+  std::vector<float> pred(3 * static_cast<size_t>(count));
+  std::vector<uint8_t> departs(count);
+  for (int x = 0; x < w; ++x) {
+    if (first[x] == RefineStrips::kNoStrip) continue;
+    const size_t base = static_cast<size_t>(x) * count;
+    const float* l = lab.l.data() + base;
+    const float* a = lab.a.data() + base;
+    const float* b = lab.b.data() + base;
+    const int yb = static_cast<int>(std::floor(y[x])) - first[x];  // the boundary row, strip index
+    const int top = yb - search;
+    const double wc = (x + 0.5) * work_per_px_x - 0.5;
+    for (int i = top; i < yb; ++i) {
+      model.Predict(wc, (first[x] + i + 0.5) * work_per_px_y - 0.5, &pred[3 * i]);
+      const float dl = l[i] - pred[3 * i], da = a[i] - pred[3 * i + 1], db = b[i] - pred[3 * i + 2];
+      departs[i] = std::sqrt(dl * dl + da * da + db * db) * inv > kDepartSigmas && b[i] > deep_blue_b;
+    }
+    // Whether rows i and i + 1 depart from the line through the `line` rows above i.
+    auto off_line = [&](int i) {
+      double sum_t = 0, sum_tt = 0, sum_v[3] = {0, 0, 0}, sum_tv[3] = {0, 0, 0};
+      for (int j = i - line; j < i; ++j) {
+        const double t = j - i, v[3] = {l[j], a[j], b[j]};
+        sum_t += t, sum_tt += t * t;
+        for (int k = 0; k < 3; ++k) sum_v[k] += v[k], sum_tv[k] += t * v[k];
+      }
+      const double det = line * sum_tt - sum_t * sum_t;
+      double at0[3], slope[3];
+      for (int k = 0; k < 3; ++k) {
+        slope[k] = (line * sum_tv[k] - sum_t * sum_v[k]) / det;
+        at0[k] = (sum_v[k] - slope[k] * sum_t) / line;
+      }
+      for (int d = 0; d <= 1; ++d) {
+        const double v[3] = {l[i + d], a[i + d], b[i + d]};
+        double dd = 0;
+        for (int k = 0; k < 3; ++k) dd += (v[k] - at0[k] - d * slope[k]) * (v[k] - at0[k] - d * slope[k]);
+        if (!(std::sqrt(dd) * inv > kDepartSigmas)) return false;
+      }
+      return true;
+    };
+    for (int i = top; i + 1 < yb; ++i) {
+      if (!departs[i] || !departs[i + 1]) continue;
+      int held = 0;
+      for (int j = i; j < yb; ++j) held += departs[j];
+      if (held < kDepartHeldShare * (yb - i) || !off_line(i)) continue;
+      // The half-way crossing from the model's sky to the ridge's colour.
+      const int g1 = std::min(yb, i + 4);
+      float ground[3] = {0, 0, 0};
+      for (int j = i + 1; j < g1; ++j) ground[0] += l[j], ground[1] += a[j], ground[2] += b[j];
+      for (float& g : ground) g /= static_cast<float>(g1 - i - 1);
+      const float d[3] = {pred[3 * i] - ground[0], pred[3 * i + 1] - ground[1], pred[3 * i + 2] - ground[2]};
+      const float dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+      double ny = first[x] + i - 0.5;
+      if (dd > 1e-6f) {
+        auto t = [&](int r) { return ((l[r] - ground[0]) * d[0] + (a[r] - ground[1]) * d[1] + (b[r] - ground[2]) * d[2]) / dd; };
+        for (int r = i - 2; r <= i + 2; ++r) {
+          const float t0 = t(r - 1), t1 = t(r);
+          if (t0 >= 0.5f && t1 < 0.5f) {
+            ny = first[x] + (r - 0.5) + (t0 - 0.5) / (t0 - t1);
+            break;
+          }
+        }
+      }
+      if (y[x] - ny >= min_raise) alt[x] = y[x], y[x] = ny;
       break;
     }
   }

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "skyline/lab.h"
+#include "skyline/sky_model.h"
 #include "skyline/skyline.h"
 
 namespace horizonreg::skyline_detail {
@@ -90,6 +91,35 @@ ColumnFit RefineColumn(RefineStrips& strips, int x, int h, int centre, int windo
 // The boundary then lies half a row above that row. Columns flagged in
 // `skip` and null ones are left alone.
 void RaiseToSkyEnd(const cv::Mat& bgr, const std::vector<uint8_t>& skip, std::vector<double>& y);
+
+// Raises each column's boundary to the top of a ridge that departs from the
+// sky's expected colour, when the boundary found lies on a clearer edge
+// lower down: a far ridge in haze a few delta E off a smooth sky (snow
+// tinted blue by the air over a bright near range; 5-30 robust sigmas of a
+// clear sky, yet a weaker step than the near ridge's). RaiseToSkyEnd's
+// straight line of the rows just above stands in for the sky there; this
+// reads the sky model fitted to the whole sky (`model`, on work planes of
+// `work_per_px` work pixels per image pixel across and down), which a
+// ridge of several rows does not bend. Per column (the column averaged
+// with its two neighbours), from 20 rows above the boundary (scaled with
+// the width over 1024) down, the first row that
+//  - departs from the model by more than 4 of its robust sigmas (the
+//    model's own, at least 1 delta E), as does the row below it,
+//  - and from a straight line through the 16 rows above it (a smooth
+//    gradient the model misses, as a sunset's glow near the horizon, stays
+//    sky),
+//  - is not saturated blue (b* above deep_blue_b: a deep band of sky), and
+//  - is followed down to the boundary by departing rows (80% of them),
+// starts the terrain: the boundary moves to the half-way crossing from the
+// model's sky colour to the ridge's (the mean of the 3 rows below), when
+// that lies at least 3 rows (scaled likewise) above it (closer, the
+// refinement's crossing of the clearer edge is as good). Columns flagged
+// in `skip` and null ones are left alone.
+// The boundary it moved from is kept in `alt` (sized like y, NaN where
+// nothing moved).
+void RaiseToSkyModelDeparture(const cv::Mat& bgr, const SkyModel& model, double work_per_px_x, double work_per_px_y,
+                              float deep_blue_b, const std::vector<uint8_t>& skip, std::vector<double>& y,
+                              std::vector<double>& alt);
 
 // Hysteresis (as Canny's edges): a column too faint to stand alone (its
 // contrast at least faint_contrast, under the clear columns' threshold)

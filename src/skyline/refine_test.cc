@@ -3,7 +3,9 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <tuple>
 
 namespace horizonreg::skyline_detail {
 namespace {
@@ -71,6 +73,58 @@ TEST(RaiseToSkyEnd, NullAndSkippedColumnsAreLeftAlone) {
   EXPECT_TRUE(std::isnan(y[1]));
   for (int x = 0; x < kW; x += 2) EXPECT_EQ(y[x], kBoundary) << x;
   EXPECT_GE(CountAt(y, kTop - 0.5), 0.45 * kW);  // the other odd columns
+}
+
+// RaiseToSkyModelDeparture on a scene: the sky model fitted to the rows
+// above kTop - 3 (work planes at full size), the boundary given at
+// kBoundary in every column; returns the boundary and the one it moved from.
+template <typename Band>
+std::pair<std::vector<double>, std::vector<double>> RaiseBySkyModel(Band band, std::vector<uint8_t> skip = {}) {
+  const cv::Mat img = Scene(band);
+  LabPlanes planes;
+  LabConverter::Instance().ConvertTransposed(img, planes);
+  SkyModel model;
+  model.Fit(planes, std::vector<int>(kW, kTop - 3), 2, 1.0f);
+  std::vector<double> y(kW, kBoundary), alt;
+  if (skip.empty()) skip.assign(kW, 0);
+  y[1] = NAN;
+  RaiseToSkyModelDeparture(img, model, 1.0, 1.0, -25.0f, skip, y, alt);
+  return {y, alt};
+}
+
+TEST(RaiseToSkyModelDeparture, AFarRidgeAboveAClearerEdgeRaisesTheBoundary) {
+  // A far snow ridge in haze, smooth and paler than the sky (about 10
+  // delta E), over the bright near snow where the boundary was found.
+  const auto [y, alt] = RaiseBySkyModel([](int, int) { return cv::Vec3b(205, 190, 175); });
+  EXPECT_GE(CountAt(y, kTop - 0.5), 0.95 * (kW - 1));
+  for (int x = 0; x < kW; ++x) {
+    if (std::isfinite(y[x]) && std::abs(y[x] - (kTop - 0.5)) <= 1.0) {
+      EXPECT_EQ(alt[x], kBoundary) << x;
+    }
+  }
+  EXPECT_TRUE(std::isnan(y[1]));
+  EXPECT_TRUE(std::isnan(alt[1]));
+}
+
+TEST(RaiseToSkyModelDeparture, SkyDownToTheBoundaryOrADeepBlueBandStays) {
+  // The sky's own gradient straight down to the boundary.
+  auto [y, alt] = RaiseBySkyModel([](int, int row) { return cv::Vec3b(185, 150 + row / 12, 118 + row / 12); });
+  EXPECT_EQ(CountAt(y, kBoundary), kW - 1);
+  EXPECT_TRUE(std::all_of(alt.begin(), alt.end(), [](double v) { return std::isnan(v); }));
+  // A band of saturated blue (b* far below -25) under a paler sky: sky.
+  std::tie(y, alt) = RaiseBySkyModel([](int, int) { return cv::Vec3b(230, 120, 40); });
+  EXPECT_EQ(CountAt(y, kBoundary), kW - 1);
+}
+
+TEST(RaiseToSkyModelDeparture, SkippedColumnsAreLeftAlone) {
+  std::vector<uint8_t> skip(kW, 0);
+  for (int x = 0; x < kW; x += 2) skip[x] = 1;
+  const auto [y, alt] = RaiseBySkyModel([](int, int) { return cv::Vec3b(205, 190, 175); }, skip);
+  for (int x = 0; x < kW; x += 2) {
+    EXPECT_EQ(y[x], kBoundary) << x;
+    EXPECT_TRUE(std::isnan(alt[x])) << x;
+  }
+  EXPECT_GE(CountAt(y, kTop - 0.5), 0.45 * kW);
 }
 
 // A ridge clear (6 delta E) in columns 0-49, faint (2 delta E, under the

@@ -97,6 +97,7 @@ bool SkyModel::FitMasked(const LabPlanes& lab, const std::vector<int>& top, cons
   scale_ = static_cast<float>(scale);
   fitted_ = true;
   top_ = top;
+  w_ = w, h_ = h;
   return true;
 }
 
@@ -151,6 +152,24 @@ void SkyModel::Deviation(const LabPlanes& lab, cv::Mat& dev, cv::Mat* darker) co
       float* dk = darker->ptr<float>(c);
       for (int r = 0; r < h; ++r) dk[r] = (pl[r] - l[r]) * inv;
     }
+  }
+}
+
+void SkyModel::Predict(double c, double r, float out[3]) const {
+  out[0] = out[1] = out[2] = 0.0f;
+  if (!fitted_) return;
+  const double sx = 1.0 / std::max(1, w_ - 1), sy = 1.0 / std::max(1, h_ - 1);
+  const int col = std::clamp(static_cast<int>(std::lround(c)), 0, std::max(0, w_ - 1));
+  const int fitted_rows = col < static_cast<int>(top_.size()) ? std::min(top_[col], h_) : h_;
+  const double y_end = std::max(0, fitted_rows - 1) * sy, y = std::min(r * sy, y_end), dy = r * sy - y;
+  double t[kTerms], dt[kTerms] = {0, 0, 1, 0, 0, 0, 0, 0, 0};  // the terms and their derivative in y
+  const double x = c * sx - 0.5;
+  Terms(x, y, t);
+  dt[4] = x, dt[5] = 2 * y, dt[6] = 3 * y * y, dt[7] = x * x, dt[8] = 2 * x * y;
+  for (int ch = 0; ch < 3; ++ch) {
+    double v = 0.0, slope = 0.0;
+    for (int k = 0; k < kTerms; ++k) v += coef_[ch][k] * t[k], slope += coef_[ch][k] * dt[k];
+    out[ch] = static_cast<float>(v + std::max(0.0, dy) * slope);
   }
 }
 

@@ -40,6 +40,10 @@ class SkyModel {
   // when `darker` is given, how much darker than the model the pixel is
   // (predicted L* minus L*), in the same units.
   void Deviation(const LabPlanes& lab, cv::Mat& dev, cv::Mat* darker = nullptr) const;
+  // The model's colour (L*, a*, b*) at a place of the planes it was fitted
+  // on (column c across, row r down, fractional), continued below the
+  // fitted rows as Deviation() continues it. Flat zero when not fitted.
+  void Predict(double c, double r, float out[3]) const;
   float scale() const { return scale_; }
   bool fitted() const { return fitted_; }
 
@@ -49,6 +53,7 @@ class SkyModel {
                  float scale_floor);
   std::array<std::array<double, kTerms>, 3> coef_{};  // per channel
   std::vector<int> top_;  // per column: the rows above it were fitted
+  int w_ = 0, h_ = 0;     // the planes' columns and rows
   float scale_ = 1.0f;
   bool fitted_ = false;
 };

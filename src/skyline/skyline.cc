@@ -721,6 +721,11 @@ Skyline ExtractSkyline(const cv::Mat& image, const SkylineOptions& options) {
   VetoSubtleDepartures(ws.deviation, work_t, sky_model.scale(), deep_blue_b, ws.sky);
   EdgeAbovePenalty(ws.steps, ws.sky, work_t, ws.pen);
   boundary = SolveBoundary(ws.sky, ws.steps, ws.pen, options.smoothness, options.edge_weight, slope, ws.acc);
+  // The sky model again, above the boundary found: what RaiseToSkyModelDeparture reads.
+  {
+    for (int c = 0; c < ww; ++c) fit_top[c] = boundary[c] - 3;
+    sky_model.Fit(work_t, fit_top, 2, 1.0f);
+  }
 
   // No sky: the region above the boundary must look like sky somewhere.
   {
@@ -788,6 +793,9 @@ Skyline ExtractSkyline(const cv::Mat& image, const SkylineOptions& options) {
                        kFaintMaxJumpPx * std::max(1.0, image.cols / 1024.0), image.rows, out);
   // A hazy far ridge's top taken for sky: the boundary up to where the sky ends.
   skyline_detail::RaiseToSkyEnd(bgr, grown, out.y);
+  // A far ridge in haze above a clearer near one: the boundary up to where the sky ends.
+  skyline_detail::RaiseToSkyModelDeparture(bgr, sky_model, sx, sy, deep_blue_b, grown, out.y, out.y_alt);
+  if (std::none_of(out.y_alt.begin(), out.y_alt.end(), [](double v) { return std::isfinite(v); })) out.y_alt.clear();
   return out;
 }
 
