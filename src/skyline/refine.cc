@@ -31,6 +31,18 @@ constexpr float kDepartSigmas = 4.0f;     // departure from the model and from t
 constexpr float kDepartHeldShare = 0.8f;  // share of the rows down to the boundary that depart
 constexpr int kDepartMinRaise = 3;        // rows
 
+// Where a colour crosses half way from sky to ground between rows r - 1 and
+// r, for r from `from` to `to`: t(r) the colour's share of the way back to
+// the sky (1 sky, 0 ground). NaN when it does not cross there.
+template <typename Share>
+double HalfWayCrossing(int from, int to, const Share& t) {
+  for (int r = from; r <= to; ++r) {
+    const float t0 = t(r - 1), t1 = t(r);
+    if (t0 >= 0.5f && t1 < 0.5f) return (r - 0.5) + (t0 - 0.5) / (t0 - t1);
+  }
+  return NAN;
+}
+
 }  // namespace
 
 void GatherStrips(const cv::Mat& bgr, RefineStrips& strips) {
@@ -109,14 +121,8 @@ ColumnFit RefineColumn(RefineStrips& strips, int x, int h, int centre, int windo
       const int i = r - first;
       return ((src.l[i] - ground[0]) * d[0] + (src.a[i] - ground[1]) * d[1] + (src.b[i] - ground[2]) * d[2]) / dd;
     };
-    for (int r = best - 2; r <= best + 2; ++r) {
-      const float t0 = t(r - 1), t1 = t(r);
-      if (t0 >= 0.5f && t1 < 0.5f) {
-        f.y = (r - 0.5) + (t0 - 0.5) / (t0 - t1);
-        return;
-      }
-    }
-    f.y = best;
+    const double y = HalfWayCrossing(best - 2, best + 2, t);
+    f.y = std::isfinite(y) ? y : best;
   };
   read(lab, fit);
   if (fit.contrast < kFaintContrast) {
@@ -301,17 +307,12 @@ void RaiseToSkyModelDeparture(const cv::Mat& bgr, const SkyModel& model, double 
       for (float& g : ground) g /= static_cast<float>(g1 - i - 1);
       const float d[3] = {pred[3 * i] - ground[0], pred[3 * i + 1] - ground[1], pred[3 * i + 2] - ground[2]};
       const float dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-      double ny = first[x] + i - 0.5;
+      double ny = i - 0.5;
       if (dd > 1e-6f) {
         auto t = [&](int r) { return ((l[r] - ground[0]) * d[0] + (a[r] - ground[1]) * d[1] + (b[r] - ground[2]) * d[2]) / dd; };
-        for (int r = i - 2; r <= i + 2; ++r) {
-          const float t0 = t(r - 1), t1 = t(r);
-          if (t0 >= 0.5f && t1 < 0.5f) {
-            ny = first[x] + (r - 0.5) + (t0 - 0.5) / (t0 - t1);
-            break;
-          }
-        }
+        if (const double c = HalfWayCrossing(i - 2, i + 2, t); std::isfinite(c)) ny = c;
       }
+      ny += first[x];
       if (y[x] - ny >= min_raise) alt[x] = y[x], y[x] = ny;
       break;
     }
