@@ -115,30 +115,17 @@ void SkyModel::Deviation(const LabPlanes& lab, cv::Mat& dev, cv::Mat* darker) co
   std::vector<float> pl(h), pa(h), pb(h);
   for (int c = 0; c < w; ++c) {
     const double x = c * sx - 0.5;
-    // Per column the model is a cubic in y: c0 + c1 y + c2 y^2 + c3 y^3.
-    float poly[3][4];
-    for (int ch = 0; ch < 3; ++ch) {
-      const auto& k = coef_[ch];
-      poly[ch][0] = static_cast<float>(k[0] + k[1] * x + k[3] * x * x);
-      poly[ch][1] = static_cast<float>(k[2] + k[4] * x + k[7] * x * x);
-      poly[ch][2] = static_cast<float>(k[5] + k[8] * x);
-      poly[ch][3] = static_cast<float>(k[6]);
-    }
+    const Cubic poly = ColumnCubic(x);
     // Below the rows it was fitted to in this column, the cubic is
     // continued as a straight line (its value and slope at the last row):
     // a cubic's own extrapolation can climb to the colour of the snow below.
     const int fitted_rows = c < static_cast<int>(top_.size()) ? std::min(top_[c], h) : h;
     const float y_end = static_cast<float>(std::max(0, fitted_rows - 1) * sy);
     for (int r = 0; r < h; ++r) {
-      const float y = std::min(static_cast<float>(r * sy), y_end);
-      pl[r] = poly[0][0] + y * (poly[0][1] + y * (poly[0][2] + y * poly[0][3]));
-      pa[r] = poly[1][0] + y * (poly[1][1] + y * (poly[1][2] + y * poly[1][3]));
-      pb[r] = poly[2][0] + y * (poly[2][1] + y * (poly[2][2] + y * poly[2][3]));
-      if (const float dy = static_cast<float>(r * sy) - y; dy > 0) {
-        pl[r] += dy * (poly[0][1] + y * (2 * poly[0][2] + 3 * y * poly[0][3]));
-        pa[r] += dy * (poly[1][1] + y * (2 * poly[1][2] + 3 * y * poly[1][3]));
-        pb[r] += dy * (poly[2][1] + y * (2 * poly[2][2] + 3 * y * poly[2][3]));
-      }
+      const float y = static_cast<float>(r * sy);
+      pl[r] = Continued(poly[0], y, y_end);
+      pa[r] = Continued(poly[1], y, y_end);
+      pb[r] = Continued(poly[2], y, y_end);
     }
     const float* l = lab.l.ptr<float>(c);
     const float* a = lab.a.ptr<float>(c);
@@ -155,22 +142,34 @@ void SkyModel::Deviation(const LabPlanes& lab, cv::Mat& dev, cv::Mat* darker) co
   }
 }
 
+SkyModel::Cubic SkyModel::ColumnCubic(double x) const {
+  Cubic poly;
+  for (int ch = 0; ch < 3; ++ch) {
+    const auto& k = coef_[ch];
+    poly[ch][0] = static_cast<float>(k[0] + k[1] * x + k[3] * x * x);
+    poly[ch][1] = static_cast<float>(k[2] + k[4] * x + k[7] * x * x);
+    poly[ch][2] = static_cast<float>(k[5] + k[8] * x);
+    poly[ch][3] = static_cast<float>(k[6]);
+  }
+  return poly;
+}
+
+float SkyModel::Continued(const std::array<float, 4>& p, float y_at, float y_end) {
+  const float y = std::min(y_at, y_end);
+  float v = p[0] + y * (p[1] + y * (p[2] + y * p[3]));
+  if (const float dy = y_at - y; dy > 0) v += dy * (p[1] + y * (2 * p[2] + 3 * y * p[3]));
+  return v;
+}
+
 void SkyModel::Predict(double c, double r, float out[3]) const {
   out[0] = out[1] = out[2] = 0.0f;
   if (!fitted_) return;
   const double sx = 1.0 / std::max(1, w_ - 1), sy = 1.0 / std::max(1, h_ - 1);
   const int col = std::clamp(static_cast<int>(std::lround(c)), 0, std::max(0, w_ - 1));
   const int fitted_rows = col < static_cast<int>(top_.size()) ? std::min(top_[col], h_) : h_;
-  const double y_end = std::max(0, fitted_rows - 1) * sy, y = std::min(r * sy, y_end), dy = r * sy - y;
-  double t[kTerms], dt[kTerms] = {0, 0, 1, 0, 0, 0, 0, 0, 0};  // the terms and their derivative in y
-  const double x = c * sx - 0.5;
-  Terms(x, y, t);
-  dt[4] = x, dt[5] = 2 * y, dt[6] = 3 * y * y, dt[7] = x * x, dt[8] = 2 * x * y;
-  for (int ch = 0; ch < 3; ++ch) {
-    double v = 0.0, slope = 0.0;
-    for (int k = 0; k < kTerms; ++k) v += coef_[ch][k] * t[k], slope += coef_[ch][k] * dt[k];
-    out[ch] = static_cast<float>(v + std::max(0.0, dy) * slope);
-  }
+  const Cubic poly = ColumnCubic(c * sx - 0.5);
+  const float y_end = static_cast<float>(std::max(0, fitted_rows - 1) * sy);
+  for (int ch = 0; ch < 3; ++ch) out[ch] = Continued(poly[ch], static_cast<float>(r * sy), y_end);
 }
 
 }  // namespace horizonreg::skyline_detail

@@ -49,6 +49,12 @@ class SkyModel {
 
  private:
   static constexpr int kTerms = 9;
+  using Cubic = std::array<std::array<float, 4>, 3>;  // per channel: c0 + c1 y + c2 y^2 + c3 y^3
+  // The model along the column at normalised x (-0.5 .. 0.5): a cubic in y.
+  Cubic ColumnCubic(double x) const;
+  // A channel's cubic at y, continued as a straight line (its value and
+  // slope at y_end) below y_end.
+  static float Continued(const std::array<float, 4>& p, float y, float y_end);
   bool FitMasked(const LabPlanes& lab, const std::vector<int>& top, const cv::Mat* dev, float max_dev, int stride,
                  float scale_floor);
   std::array<std::array<double, kTerms>, 3> coef_{};  // per channel
