@@ -156,13 +156,27 @@ PositionCheck CheckPositionConsistency(const Site& site, const HorizonProfile& h
     if (r.candidates.empty()) return;
     p.cost = r.candidates[0].cost;
   };
+  // Every place fitted so far: the pattern's rings come back to places
+  // already fitted (the centre it left, the first rings' places), which
+  // are taken from here instead of computed again.
+  std::vector<Place> fitted;
   auto fit_all = [&](std::vector<Place>& places) {
-    auto one = [&](size_t i, int) { fit(places[i]); };
+    std::vector<size_t> todo;
+    for (size_t i = 0; i < places.size(); ++i) {
+      const auto seen = std::find_if(fitted.begin(), fitted.end(),
+                                     [&](const Place& f) { return (f.en - places[i].en).norm() < 1.0; });
+      if (seen != fitted.end())
+        places[i] = *seen;
+      else
+        todo.push_back(i);
+    }
+    auto one = [&](size_t k, int) { fit(places[todo[k]]); };
     if (pool)
-      pool->ParallelFor(places.size(), one);
+      pool->ParallelFor(todo.size(), one);
     else
-      for (size_t i = 0; i < places.size(); ++i) one(i, 0);
-    out.horizons += static_cast<int>(places.size());
+      for (size_t k = 0; k < todo.size(); ++k) one(k, 0);
+    for (size_t i : todo) fitted.push_back(places[i]);
+    out.horizons += static_cast<int>(todo.size());
   };
   auto ring = [&](const Eigen::Vector2d& from, double radius, std::vector<Place>& places) {
     for (int k = 0; k < co.directions; ++k) {
@@ -209,6 +223,8 @@ PositionCheck CheckPositionConsistency(const Site& site, const HorizonProfile& h
     }
     places.clear();
     ring(center.en, step, places);
+    // The budget counts the ring's places fitted before too: the places
+    // taken from `fitted` save time but change no decision.
     if (places.empty() || out.horizons + static_cast<int>(places.size()) > co.max_horizons) break;
     fit_all(places);
   }
