@@ -25,6 +25,12 @@ double MsSince(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 }
 
+// The gate of a pose given as initial, as the refusals name it.
+std::string PoseGateText(const RegistrationOptions& constrained) {
+  return std::to_string(std::lround(constrained.prior.gate_sigmas * constrained.prior.compass_sigma_deg)) +
+         " deg, the opening angle 10%";
+}
+
 }  // namespace
 
 PhotoPosition ResolvePhotoPosition(std::optional<double> lat, std::optional<double> lon, std::optional<double> agl,
@@ -221,9 +227,8 @@ PhotoRegistration RegisterPhoto(const Site& site, const cv::Mat& image_in, const
         // it walked 32 deg and passed).
         if (r.registered && !WithinPose(constrained, r)) {
           r.registered = false;
-          r.message = "the local fit from --initial ended outside the pose given (" +
-                      std::to_string(std::lround(constrained.prior.gate_sigmas * constrained.prior.compass_sigma_deg)) +
-                      " deg, the opening angle 10%): another horizon fits, not the one expected";
+          r.message = "the local fit from --initial ended outside the pose given (" + PoseGateText(constrained) +
+                      "): another horizon fits, not the one expected";
         }
       }
     }
@@ -312,9 +317,8 @@ Registration ConfirmedWithoutPrior(Registration alone, const RegistrationOptions
                      "lets it decide)";
   } else if (!WithinPose(constrained, alone)) {
     alone.registered = false;
-    alone.message = "the skyline registers outside the pose given by --initial (" +
-                    std::to_string(std::lround(constrained.prior.gate_sigmas * constrained.prior.compass_sigma_deg)) +
-                    " deg, the opening angle 10%): another horizon, or another position";
+    alone.message = "the skyline registers outside the pose given by --initial (" + PoseGateText(constrained) +
+                    "): another horizon, or another position";
   } else {
     alone.message += " (the pose given confirmed)";
   }
