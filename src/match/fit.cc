@@ -408,8 +408,9 @@ FitStats ComputeFitStats(const Scorer& scorer, const Pose4& p, const std::vector
 std::vector<Column> VisibleColumns(const Skyline& skyline, const ImageFrame& frame) {
   std::vector<Column> all;
   for (int i = 0; i < skyline.width; ++i) {
-    if (!std::isfinite(skyline.MatchY(i))) continue;
-    const auto uv = frame.Offset(i + 0.5, skyline.MatchY(i));
+    const double y = skyline.MatchY(i);
+    if (!std::isfinite(y)) continue;
+    const auto uv = frame.Offset(i + 0.5, y);
     if (!uv) continue;
     Column c;
     c.u = uv->x();

@@ -369,7 +369,7 @@ Registration Register(const Skyline& skyline, const HorizonProfile& horizon, con
     if (!std::isfinite(skyline.MatchY(i))) continue;
     window.clear();
     for (int j = std::max(0, i - half); j <= std::min(width - 1, i + half); ++j)
-      if (std::isfinite(skyline.MatchY(j))) window.push_back(skyline.MatchY(j));
+      if (const double y = skyline.MatchY(j); std::isfinite(y)) window.push_back(y);
     std::nth_element(window.begin(), window.begin() + window.size() / 2, window.end());
     up[i] = -window[window.size() / 2];
   }

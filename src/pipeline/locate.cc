@@ -32,8 +32,10 @@ Profile SkylineProfile(const Skyline& skyline, double hfov_deg, double pitch_deg
     // The median of the columns within +-1 of x (a lone misread column does not count).
     double ys[3];
     int m = 0;
-    for (int c = static_cast<int>(std::floor(x)) - 1; c <= static_cast<int>(std::floor(x)) + 1; ++c)
-      if (c >= 0 && c < skyline.width && std::isfinite(skyline.MatchY(c))) ys[m++] = skyline.MatchY(c);
+    for (int c = static_cast<int>(std::floor(x)) - 1; c <= static_cast<int>(std::floor(x)) + 1; ++c) {
+      if (c < 0 || c >= skyline.width) continue;
+      if (const double y = skyline.MatchY(c); std::isfinite(y)) ys[m++] = y;
+    }
     if (m == 0) {
       p.offset_deg.push_back(RadToDeg(std::atan2(x - cx, f * cp)));
       p.elevation_deg.push_back(NAN);
