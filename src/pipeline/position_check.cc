@@ -160,7 +160,9 @@ PositionCheck CheckPositionConsistency(const Site& site, const HorizonProfile& h
   // already fitted (the centre it left, the first rings' places), which
   // are taken from here instead of computed again.
   std::vector<Place> fitted;
+  int visited = 0;  // places the pattern has visited, fitted before or not: what the budget counts
   auto fit_all = [&](std::vector<Place>& places) {
+    visited += static_cast<int>(places.size());
     std::vector<size_t> todo;
     for (size_t i = 0; i < places.size(); ++i) {
       const auto seen = std::find_if(fitted.begin(), fitted.end(),
@@ -223,9 +225,9 @@ PositionCheck CheckPositionConsistency(const Site& site, const HorizonProfile& h
     }
     places.clear();
     ring(center.en, step, places);
-    // The budget counts the ring's places fitted before too: the places
-    // taken from `fitted` save time but change no decision.
-    if (places.empty() || out.horizons + static_cast<int>(places.size()) > co.max_horizons) break;
+    // The budget counts every place visited, those taken from `fitted`
+    // too: they save time but change no decision.
+    if (places.empty() || visited + static_cast<int>(places.size()) > co.max_horizons) break;
     fit_all(places);
   }
   out.cost_ratio = center.cost / given.cost;

@@ -30,7 +30,7 @@ struct PositionCheckOptions {
   double min_step_m = 500.0;      // halved down to this (only once the search has moved)
   int directions = 8;             // places per ring
   double max_offset_m = 6000.0;   // the search stays within this of the given position
-  int max_horizons = 48;          // and computes at most this many horizons
+  int max_horizons = 48;          // and visits at most this many places (each fitted once: horizons <= this)
   int candidates = 4;             // each place's search: distinct hypotheses kept (at most the registration's) ...
   int refined_candidates = 2;     // ... of which this many get the least squares
   // Refused when some place at least min_offset_m away fits with a cost
