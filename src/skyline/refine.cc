@@ -43,28 +43,32 @@ double HalfWayCrossing(int from, int to, const Share& t) {
   return NAN;
 }
 
-}  // namespace
-
-void GatherStrips(const cv::Mat& bgr, RefineStrips& strips) {
-  const int h = bgr.rows, w = bgr.cols, count = strips.count;
-  strips.column.bgr.assign(3 * static_cast<size_t>(w) * count, 0);
-  strips.wide.bgr.assign(strips.column.bgr.size(), 0);
+// Per column x with a strip (first[x] != kNoStrip): `count` rows from
+// first[x] (rows outside the image repeat the edge row) of the column averaged
+// with `half` neighbours on each side (fewer at the image's edges), rounded;
+// BGR, column after column.
+void AverageStrips(const cv::Mat& bgr, const std::vector<int>& first, int count, int half, std::vector<uint8_t>& out) {
+  const int h = bgr.rows, w = bgr.cols;
+  out.assign(3 * static_cast<size_t>(w) * count, 0);
   for (int x = 0; x < w; ++x) {
-    if (strips.first[x] == RefineStrips::kNoStrip) continue;
-    const int c0 = std::max(0, x - kStepColumns), c1 = std::min(w - 1, x + kStepColumns), n = c1 - c0 + 1;
-    uint8_t* own = strips.column.bgr.data() + 3 * static_cast<size_t>(x) * count;
-    uint8_t* wide = strips.wide.bgr.data() + 3 * static_cast<size_t>(x) * count;
+    if (first[x] == RefineStrips::kNoStrip) continue;
+    const int c0 = std::max(0, x - half), c1 = std::min(w - 1, x + half), n = c1 - c0 + 1;
+    uint8_t* strip = out.data() + 3 * static_cast<size_t>(x) * count;
     for (int i = 0; i < count; ++i) {
-      const uint8_t* row = bgr.ptr<uint8_t>(std::clamp(strips.first[x] + i, 0, h - 1));
+      const uint8_t* row = bgr.ptr<uint8_t>(std::clamp(first[x] + i, 0, h - 1));
       int sum[3] = {0, 0, 0};
       for (int c = c0; c <= c1; ++c)
         for (int k = 0; k < 3; ++k) sum[k] += row[3 * c + k];
-      for (int k = 0; k < 3; ++k) {
-        own[3 * i + k] = row[3 * x + k];
-        wide[3 * i + k] = static_cast<uint8_t>((sum[k] + n / 2) / n);
-      }
+      for (int k = 0; k < 3; ++k) strip[3 * i + k] = static_cast<uint8_t>((sum[k] + n / 2) / n);
     }
   }
+}
+
+}  // namespace
+
+void GatherStrips(const cv::Mat& bgr, RefineStrips& strips) {
+  AverageStrips(bgr, strips.first, strips.count, 0, strips.column.bgr);
+  AverageStrips(bgr, strips.first, strips.count, kStepColumns, strips.wide.bgr);
   strips.column.Convert();
   strips.wide.Convert();
 }
@@ -241,20 +245,7 @@ void RaiseToSkyModelDeparture(const cv::Mat& bgr, const SkyModel& model, double 
     if (yb - search - line - 3 >= 0 && yb + 2 <= h && y[x] - min_raise > 0) first[x] = yb - search - line - 3;
   }
   LabStrips lab;
-  lab.bgr.assign(3 * static_cast<size_t>(w) * count, 0);
-  for (int x = 0; x < w; ++x) {
-    if (first[x] == RefineStrips::kNoStrip) continue;
-    const int c0 = std::max(0, x - 1), c1 = std::min(w - 1, x + 1), n = c1 - c0 + 1;
-    uint8_t* out = lab.bgr.data() + 3 * static_cast<size_t>(x) * count;
-    for (int i = 0; i < count; ++i) {
-      const uint8_t* row = bgr.ptr<uint8_t>(first[x] + i);
-      for (int k = 0; k < 3; ++k) {
-        int sum = 0;
-        for (int c = c0; c <= c1; ++c) sum += row[3 * c + k];
-        out[3 * i + k] = static_cast<uint8_t>((sum + n / 2) / n);
-      }
-    }
-  }
+  AverageStrips(bgr, first, count, 1, lab.bgr);
   lab.Convert();
   const float inv = 1.0f / model.scale();
   std::vector<float> pred(3 * static_cast<size_t>(count));
