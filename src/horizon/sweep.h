@@ -107,14 +107,22 @@ struct RowScratch {
 // x86-64 with run-time dispatch (horizon/sweep.cc).
 void ComputeRow(const RowInput& in, RowScratch& out);
 
-// sin (first width values) and cos (next width) of (column longitude - lon0)
-// of a separable grid.
-inline std::vector<double> ColumnTrig(const DemGrid& grid, double lon0_deg) {
-  std::vector<double> t(2 * static_cast<size_t>(grid.width));
-  for (int c = 0; c < grid.width; ++c) {
-    const double dl = DegToRad(grid.lon0_deg + c * grid.dlon_deg - lon0_deg);
+// The trigonometry of a separable grid's posts: sin (first width values)
+// and cos (next width) of (column longitude - lon0), then sin and cos of
+// each row's latitude and its prime-vertical radius (height values each).
+inline std::vector<double> GridTrig(const DemGrid& grid, double lon0_deg) {
+  const size_t w = grid.width, h = grid.height;
+  std::vector<double> t(2 * w + 3 * h);
+  for (size_t c = 0; c < w; ++c) {
+    const double dl = DegToRad(grid.lon0_deg + static_cast<double>(c) * grid.dlon_deg - lon0_deg);
     t[c] = std::sin(dl);
-    t[grid.width + c] = std::cos(dl);
+    t[w + c] = std::cos(dl);
+  }
+  for (size_t r = 0; r < h; ++r) {
+    const double lat = DegToRad(grid.lat0_deg + static_cast<double>(r) * grid.dlat_deg), sp = std::sin(lat);
+    t[2 * w + r] = sp;
+    t[2 * w + h + r] = std::cos(lat);
+    t[2 * w + 2 * h + r] = kWgs84A / std::sqrt(1.0 - kWgs84E2 * sp * sp);
   }
   return t;
 }
@@ -127,17 +135,21 @@ inline std::vector<double> ColumnTrig(const DemGrid& grid, double lon0_deg) {
 // sparse subset of the posts goes to handler.Post (see below).
 template <typename Handler>
 void SweepRows(const DemGrid& grid, const LocalFrame& frame, const SweepSetup& setup, int row_begin, int row_end,
-               bool pre_pass, Handler& handler, const std::vector<double>* column_trig = nullptr) {
+               bool pre_pass, Handler& handler, const std::vector<double>* grid_trig = nullptr) {
   const GeodeticPoint& o = frame.origin();
   const double sp0 = std::sin(DegToRad(o.lat_deg)), cp0 = std::cos(DegToRad(o.lat_deg));
   const double n0 = kWgs84A / std::sqrt(1.0 - kWgs84E2 * sp0 * sp0);
   const double x0 = (n0 + o.height_m) * cp0, z0 = (n0 * (1.0 - kWgs84E2) + o.height_m) * sp0;
   const int w = grid.width;
-  // sin / cos of (lon - lon0) per column, separable grids (ColumnTrig, or computed here).
+  // Separable grids: sin / cos of (lon - lon0) per column, sin / cos of the
+  // latitude and the prime-vertical radius per row (GridTrig, or computed here).
   std::vector<double> own_trig;
-  if (grid.separable && column_trig == nullptr) own_trig = ColumnTrig(grid, o.lon_deg);
-  const double* col_s = grid.separable ? (column_trig ? column_trig : &own_trig)->data() : nullptr;
+  if (grid.separable && grid_trig == nullptr) own_trig = GridTrig(grid, o.lon_deg);
+  const double* col_s = grid.separable ? (grid_trig ? grid_trig : &own_trig)->data() : nullptr;
   const double* col_c = grid.separable ? col_s + w : nullptr;
+  const double* row_s = grid.separable ? col_s + 2 * static_cast<size_t>(w) : nullptr;
+  const double* row_c = grid.separable ? row_s + grid.height : nullptr;
+  const double* row_nr = grid.separable ? row_c + grid.height : nullptr;
   const double inv_step = 1.0 / setup.step_rad;
   const double lift_scale = setup.refraction / (2.0 * kRefractionEarthRadiusM);
   const double min_d2 = setup.min_distance_m * setup.min_distance_m;
@@ -155,9 +167,7 @@ void SweepRows(const DemGrid& grid, const LocalFrame& frame, const SweepSetup& s
     in.count = c_end - c_begin;
     in.stride = col_stride;
     if (grid.separable) {
-      const double lat = DegToRad(grid.lat0_deg + r * grid.dlat_deg);
-      in.row_sin_lat = std::sin(lat), in.row_cos_lat = std::cos(lat);
-      in.row_n = kWgs84A / std::sqrt(1.0 - kWgs84E2 * in.row_sin_lat * in.row_sin_lat);
+      in.row_sin_lat = row_s[r], in.row_cos_lat = row_c[r], in.row_n = row_nr[r];
       in.col_sin_dlon = col_s + c_begin, in.col_cos_dlon = col_c + c_begin;
     } else {
       for (int c = c_begin; c < c_end; c += col_stride) {  // ComputeRow reads every col_stride-th
@@ -209,10 +219,8 @@ void SweepRows(const DemGrid& grid, const LocalFrame& frame, const SweepSetup& s
       const size_t k = static_cast<size_t>(r) * w + c;
       return Eigen::Vector2d(frame.EnuFromGeodetic({grid.lat_deg[k], grid.lon_deg[k], 0.0}).head<2>());
     }
-    const double lat = DegToRad(grid.lat0_deg + r * grid.dlat_deg);
-    const double sp = std::sin(lat), cp = std::cos(lat);
-    const double nr = kWgs84A / std::sqrt(1.0 - kWgs84E2 * sp * sp);
-    const double a = nr * cp;
+    const double sp = row_s[r], nr = row_nr[r];
+    const double a = nr * row_c[r];
     const double dx = a * col_c[c] - x0, dz = nr * (1.0 - kWgs84E2) * sp - z0;
     return Eigen::Vector2d(a * col_s[c], -sp0 * dx + cp0 * dz);
   };
@@ -383,7 +391,7 @@ std::vector<Handler> SweepGrids(const std::vector<DemGrid>& grids, const LocalFr
   for (const DemGrid& grid : grids) {
     if (grid.width < 2 || grid.height < 2) continue;
     const int blocks = (grid.height + kBlockRows - 1) / kBlockRows;
-    const std::vector<double> trig = grid.separable ? ColumnTrig(grid, frame.origin().lon_deg) : std::vector<double>();
+    const std::vector<double> trig = grid.separable ? GridTrig(grid, frame.origin().lon_deg) : std::vector<double>();
     std::vector<char> primed(slots, 0);
     ParallelFor(pool, static_cast<size_t>(blocks), [&](size_t b, int t) {
       if (!primed[t]) {
