@@ -49,10 +49,10 @@ std::vector<Eigen::Vector3d> HorizonPositionGradient(const HorizonProfile& h) {
 }
 
 PoseAndPositionFit FitPoseAndPosition(const Skyline& skyline, const HorizonProfile& horizon, const CameraPose& start,
-                                      double focal_px, double k1, bool fix_focal, const Eigen::Vector3d& offset_enu_m,
-                                      const Eigen::Vector3d& prior_sigma_enu_m, const RegistrationOptions& options,
-                                      double flattening_scale, int iterations, const Eigen::Vector3d& free_axes,
-                                      double prior_weight) {
+                                      double focal_px, double k1, bool free_k1, bool fix_focal,
+                                      const Eigen::Vector3d& offset_enu_m, const Eigen::Vector3d& prior_sigma_enu_m,
+                                      const RegistrationOptions& options, double flattening_scale, int iterations,
+                                      const Eigen::Vector3d& free_axes, double prior_weight) {
   options.Check();
   if (skyline.width < 1 || static_cast<int>(skyline.y.size()) != skyline.width)
     throw InvalidArgument("FitPoseAndPosition: skyline has no columns or y.size() != width");
@@ -69,8 +69,11 @@ PoseAndPositionFit FitPoseAndPosition(const Skyline& skyline, const HorizonProfi
   out.columns = static_cast<int>(cols.size());
   out.pose = start;
   out.focal_px = frame.known() ? frame.KnownFocalPx() : focal_px;
+  out.k1 = frame.known() ? 0.0 : k1;
   if (cols.size() < 8) return out;
   const bool hold_f = fix_focal || frame.known();
+  const bool fit_k1 = free_k1 && !frame.known();
+  const double k1_inv_var = 1.0 / (options.distortion_prior_sigma * options.distortion_prior_sigma);
   const DemErrorModel model =
       match_detail::ScaledModel(options.dem_error, std::isfinite(flattening_scale) ? flattening_scale : 1.0);
   const HorizonLookup lookup(horizon, model);
@@ -89,21 +92,24 @@ PoseAndPositionFit FitPoseAndPosition(const Skyline& skyline, const HorizonProfi
 
   Pose4 p = Pose4::From(start, out.focal_px, frame.known() ? 0.0 : k1);
   Eigen::Vector3d step = Eigen::Vector3d::Zero();
+  // Parameters: yaw, pitch, roll (radians), focal length (px), east, north,
+  // up (metres), k1 (held at its start unless fit_k1).
   using Mat7 = Eigen::Matrix<double, 7, 7>;
-  using Vec7 = Eigen::Matrix<double, 7, 1>;
-  Mat7 a_data = Mat7::Zero();
+  using Mat8 = Eigen::Matrix<double, 8, 8>;
+  using Vec8 = Eigen::Matrix<double, 8, 1>;
+  Mat8 a_data = Mat8::Zero();
   double chi2_in = 0.0, expected_in = 0.0, cost = 0.0, inliers = 0.0;
   // One pass: the residuals at (p, step), their Jacobian and IRLS weights.
   auto accumulate = [&]() {
     scorer.Reweight(p, cols);
     a_data.setZero();
-    Vec7 b = Vec7::Zero();
+    Vec8 b = Vec8::Zero();
     chi2_in = expected_in = cost = inliers = 0.0;
     const Eigen::Matrix3d m = CamFromEnuRad(p.yaw, p.pitch, p.roll);
-    const double h_ang = 1e-6, h_f = 1e-5 * p.f;
-    Pose4 q[8];
-    Eigen::Matrix3d mq[8];
-    for (int k = 0; k < 4; ++k)
+    const double h_ang = 1e-6, h_f = 1e-5 * p.f, h_k1 = 1e-6;
+    Pose4 q[10];
+    Eigen::Matrix3d mq[10];
+    for (int k = 0; k < 5; ++k)
       for (int s = 0; s < 2; ++s) {
         Pose4 v = p;
         const double sign = s == 0 ? 1.0 : -1.0;
@@ -111,6 +117,7 @@ PoseAndPositionFit FitPoseAndPosition(const Skyline& skyline, const HorizonProfi
         if (k == 1) v.pitch += sign * h_ang;
         if (k == 2) v.roll += sign * h_ang;
         if (k == 3) v.f += sign * h_f;
+        if (k == 4) v.k1 += sign * h_k1;
         q[2 * k + s] = v;
         mq[2 * k + s] = CamFromEnuRad(v.yaw, v.pitch, v.roll);
       }
@@ -122,13 +129,14 @@ PoseAndPositionFit FitPoseAndPosition(const Skyline& skyline, const HorizonProfi
       const double factor = p.f * (1.0 + yn * yn) * std::sqrt(1.0 + xn * xn) * c.slope_weight;
       const Eigen::Vector3d g = gradient_at(az) * factor;
       const double r = scorer.Residual(m, p, c) + g.dot(step);
-      Vec7 j;
+      Vec8 j;
       for (int k = 0; k < 4; ++k) {
         const double hk = k == 3 ? h_f : h_ang;
         j(k) = (scorer.Residual(mq[2 * k], q[2 * k], c) - scorer.Residual(mq[2 * k + 1], q[2 * k + 1], c)) / (2 * hk);
       }
       if (hold_f) j(3) = 0.0;
-      j.tail<3>() = g.cwiseProduct(free_axes);
+      j.segment<3>(4) = g.cwiseProduct(free_axes);
+      j(7) = fit_k1 ? (scorer.Residual(mq[8], q[8], c) - scorer.Residual(mq[9], q[9], c)) / (2 * h_k1) : 0.0;
       const ColumnLoss loss(c);
       const double prob = scorer.InlierProbability(c, r);
       const double w = loss.Weight(r) * prob;
@@ -158,14 +166,15 @@ PoseAndPositionFit FitPoseAndPosition(const Skyline& skyline, const HorizonProfi
       const double r = scorer.Residual(m, q, c) + factor * gradient_at(std::atan2(d.x(), d.y())).dot(at_step);
       sum += std::min(ColumnLoss(c).Chi2(r), kGateChi2);
     }
-    return sum + prior_weight * (offset_enu_m + at_step).cwiseProduct(inv_var.cwiseSqrt()).squaredNorm();
+    return sum + prior_weight * (offset_enu_m + at_step).cwiseProduct(inv_var.cwiseSqrt()).squaredNorm() +
+           (fit_k1 ? q.k1 * q.k1 * k1_inv_var : 0.0);
   };
   double lambda = 1e-3;
   for (int it = 0; it < iterations; ++it) {
-    const Vec7 b0 = accumulate();
+    const Vec8 b0 = accumulate();
     const double before = objective(p, step);
-    Mat7 a = a_data;
-    Vec7 b = b0;
+    Mat8 a = a_data;
+    Vec8 b = b0;
     const Eigen::Vector3d at = offset_enu_m + step;
     for (int k = 0; k < 3; ++k) {
       a(4 + k, 4 + k) += prior_weight * inv_var(k);
@@ -174,15 +183,20 @@ PoseAndPositionFit FitPoseAndPosition(const Skyline& skyline, const HorizonProfi
     if (hold_f) a(3, 3) += 1.0;
     for (int k = 4; k < 7; ++k)
       if (free_axes(k - 4) == 0.0) a.row(k).setZero(), a.col(k).setZero(), a(k, k) = 1.0, b(k) = 0.0;
+    if (fit_k1)
+      a(7, 7) += k1_inv_var, b(7) += k1_inv_var * p.k1;
+    else
+      a.row(7).setZero(), a.col(7).setZero(), a(7, 7) = 1.0, b(7) = 0.0;
     bool improved = false;
     for (int tries = 0; tries < 6 && !improved; ++tries, lambda *= 10.0) {
-      Mat7 damped = a;
-      for (int k = 0; k < 7; ++k) damped(k, k) += lambda * std::max(a(k, k), 1e-12);
-      const Vec7 delta = -damped.ldlt().solve(b);
+      Mat8 damped = a;
+      for (int k = 0; k < 8; ++k) damped(k, k) += lambda * std::max(a(k, k), 1e-12);
+      const Vec8 delta = -damped.ldlt().solve(b);
       if (!delta.allFinite()) break;
       Pose4 q = p;
       q.yaw += delta(0), q.pitch += delta(1), q.roll += delta(2);
       if (!hold_f) q.f = std::clamp(p.f + delta(3), 0.8 * p.f, 1.25 * p.f);
+      if (fit_k1) q.k1 = std::clamp(p.k1 + delta(7), -0.5, 0.5);
       Eigen::Vector3d next = step;
       for (int k = 0; k < 3; ++k)
         if (free_axes(k) != 0.0) next(k) = std::clamp(offset_enu_m(k) + step(k) + delta(4 + k), -limit(k), limit(k)) - offset_enu_m(k);
@@ -215,13 +229,18 @@ PoseAndPositionFit FitPoseAndPosition(const Skyline& skyline, const HorizonProfi
     }
   }
   const double effective = std::clamp(independent / cols.size(), 1e-3, 1.0);
-  Mat7 info = a_data * (effective / std::max(1.0, misfit));
+  Mat8 info = a_data * (effective / std::max(1.0, misfit));
   for (int k = 0; k < 3; ++k) info(4 + k, 4 + k) += inv_var(k);
   if (hold_f) info(3, 3) += 1.0;
-  out.covariance = info.inverse();
+  if (fit_k1)
+    info(7, 7) += k1_inv_var;
+  else
+    info.row(7).setZero(), info.col(7).setZero(), info(7, 7) = 1.0;
+  out.covariance = Mat7(info.inverse().topLeftCorner<7, 7>());  // k1 marginalised
   if (hold_f) out.covariance.row(3).setZero(), out.covariance.col(3).setZero();
   out.pose = p.ToPose();
   out.focal_px = p.f;
+  out.k1 = p.k1;
   out.step_enu_m = step;
   out.cost = cost;
   out.inlier_share = inliers;

@@ -34,10 +34,12 @@ std::vector<Eigen::Vector3d> HorizonPositionGradient(const HorizonProfile& horiz
 struct PoseAndPositionFit {
   CameraPose pose;                         // optical axis
   double focal_px = 0.0;
+  double k1 = 0.0;                                       // radial distortion (the start's when held)
   Eigen::Vector3d step_enu_m = Eigen::Vector3d::Zero();  // the move from where the horizon was computed
   // Covariance of (yaw, pitch, roll in radians, focal px, east, north, up in
   // metres) with the prior, scaled by the inliers' misfit when above 1 and
-  // by the share of independent DEM samples among the columns.
+  // by the share of independent DEM samples among the columns (k1, when
+  // fitted, marginalised).
   Eigen::Matrix<double, 7, 7> covariance = Eigen::Matrix<double, 7, 7>::Identity();
   double cost = 0.0;        // robust cost (mean chi^2 over the columns, truncated at the gate) at the result
   double inlier_share = 0.0;  // columns inside the gate at the result (linearised horizon)
@@ -47,7 +49,8 @@ struct PoseAndPositionFit {
 // Robust Gauss-Newton (iteratively reweighted, the one-sided DEM loss and
 // the outlier mixture of Register) of yaw, pitch, roll, focal length (held
 // when fix_focal or the lens is known) and the observer's move, starting
-// from `start` and `focal_px` (k1 held at `k1`) at the position where
+// from `start`, `focal_px` and `k1` (k1 fitted when free_k1, under
+// options.distortion_prior_sigma about 0, else held) at the position where
 // `horizon` was computed, which lies `offset_enu_m` from the prior's centre;
 // the prior is Gaussian with `prior_sigma_enu_m` (each > 0) per axis about
 // that centre. The horizon under a move comes from HorizonPositionGradient.
@@ -56,16 +59,14 @@ struct PoseAndPositionFit {
 // `flattening_scale` as Registration::dem. The step is clamped to
 // 3 prior sigmas from the centre. `free_axes` (1 free, 0 held, per east,
 // north, up) holds axes where they are; all held fits the orientation
-// alone: the cost of the position where the horizon was computed. `prior_weight` (in (0, 1]) weakens the prior in the steps (a
-// proposal under an inflated noise model), not in the covariance.
-// Levenberg-Marquardt: a step is taken when the robust objective (the
-// truncated chi^2 of the columns on the linearised horizon and the
-// prior's) falls. Throws InvalidArgument for bad inputs.
-// Thread-safe.
+// alone: the cost of the position where the horizon was computed. `prior_weight` (in (0, 1]) weakens the prior in the
+// steps (a proposal under an inflated noise model), not in the covariance. Levenberg-Marquardt: a step is taken when
+// the robust objective (the truncated chi^2 of the columns on the linearised horizon and the prior's) falls. Throws
+// InvalidArgument for bad inputs. Thread-safe.
 PoseAndPositionFit FitPoseAndPosition(const Skyline& skyline, const HorizonProfile& horizon, const CameraPose& start,
-                                      double focal_px, double k1, bool fix_focal, const Eigen::Vector3d& offset_enu_m,
-                                      const Eigen::Vector3d& prior_sigma_enu_m, const RegistrationOptions& options,
-                                      double flattening_scale, int iterations = 6,
+                                      double focal_px, double k1, bool free_k1, bool fix_focal,
+                                      const Eigen::Vector3d& offset_enu_m, const Eigen::Vector3d& prior_sigma_enu_m,
+                                      const RegistrationOptions& options, double flattening_scale, int iterations = 6,
                                       const Eigen::Vector3d& free_axes = Eigen::Vector3d::Ones(),
                                       double prior_weight = 1.0);
 

@@ -118,6 +118,45 @@ TEST_F(PositionTest, RecoversAnOffsetPositionWhereNearHillsShowIt) {
   EXPECT_NEAR(r.pose.pitch_deg, truth.pitch_deg, 0.1);
 }
 
+// A registration at a position tens of metres off can fit k1 to the
+// parallax the position makes (cascades_02: +0.14, with the focal length 3%
+// short). The refinement fits k1 with the position instead of holding it:
+// here the same start as above with a pincushion k1 of +0.12 and the focal
+// length 3% short, which held would keep the fit from the true position.
+TEST_F(PositionTest, FitsK1AgainWhenTheRegistrationFittedIt) {
+  const Skyline sky = TrueSkyline(window, eye);
+  const auto [lat, lon] = Moved(21.0, -21.0);
+  const Site site(TerrainWindow(window), lat, lon, Options(eye.height_m + 20.0));
+  const PositionOptions po = DefaultPositionOptions("arguments", false, std::nullopt);
+  RegistrationOptions ro;
+  ro.dem_error.position_sigma_m = po.horizontal_sigma_m;
+  ro.dem_error.height_sigma_m = po.vertical_sigma_m;
+  ro.estimate_distortion = false;
+  Registration first = Register(sky, site.horizon(), ro);
+  ASSERT_GT(first.focal_px, 0.0) << first.message;
+  first.focal_px *= 0.97;
+  first.intrinsics.distortion = LensDistortion::Radial(0.12);
+  first.distortion_estimated = true;
+  const PositionEstimate e = RefinePosition(site, sky, first, ro, po);
+  ASSERT_TRUE(e.observable_axis[2]) << e.message;
+  const Eigen::Vector3d at = LocalFrame(eye).EnuFromGeodetic(e.observer);
+  EXPECT_LT(std::abs(at.z()), 3.0) << e.message << " at " << at.transpose();
+  EXPECT_LT(at.head<2>().norm(), 10.0) << e.message << " at " << at.transpose();
+  // The joint fit itself: from k1 +0.12 at the true position, k1 goes back
+  // towards the pinhole's 0 when free and stays when held.
+  const Site at_truth(TerrainWindow(window), kLat, kLon, Options(eye.height_m));
+  const PoseAndPositionFit freed =
+      FitPoseAndPosition(sky, at_truth.horizon(), truth, 0.97 * k.focal_px, 0.12, true, false, Eigen::Vector3d::Zero(),
+                         Eigen::Vector3d(15.0, 15.0, 10.0), ro, 1.0, 12, Eigen::Vector3d::Zero());
+  const PoseAndPositionFit held =
+      FitPoseAndPosition(sky, at_truth.horizon(), truth, 0.97 * k.focal_px, 0.12, false, false, Eigen::Vector3d::Zero(),
+                         Eigen::Vector3d(15.0, 15.0, 10.0), ro, 1.0, 12, Eigen::Vector3d::Zero());
+  EXPECT_NEAR(freed.k1, 0.0, 0.02);
+  EXPECT_NEAR(freed.focal_px, k.focal_px, 0.01 * k.focal_px);
+  EXPECT_EQ(held.k1, 0.12);
+  EXPECT_LT(freed.cost, held.cost);
+}
+
 TEST_F(PositionTest, KeepsThePriorWhenTheHorizonIsAllFarAway) {
   testing::ConeRing ring = testing::MakeConeRing();  // cones 5-8 km away, nothing near
   const Skyline sky = TrueSkyline(ring.window, ring.eye);
