@@ -13,8 +13,9 @@
 //  3. Exact: `RegisterPhoto` at the best fine viewpoints (the full
 //     registration, its gates included). The photo is located when the best
 //     registers with a close fit (misfit <= 1) and enough evidence (350
-//     nats: more than a given position needs), every other place tried fits
-//     clearly worse (misfit ratio at least 1.5) and the viewpoints that fit
+//     nats: more than a given position needs), every other place tried that
+//     can tell the pose (enough informative columns) fits clearly worse
+//     (misfit ratio at least 1.5) and the viewpoints that fit
 //     about as well (within 15%) agree on the orientation within 0.3 deg;
 //     else no_match, with the runners-up listed.
 #pragma once
@@ -63,6 +64,7 @@ struct LocateCandidate {
   double hfov_deg = 0.0;         // the opening angle that fitted best
   bool registered = false;       // after the exact registration (when it was run)
   bool tried = false;            // the exact registration was run
+  bool informative = false;      // its registration had enough informative columns to tell the pose
   double misfit = NAN;           // its misfit (lower is better)
   std::string message;           // its status message
   // Of the viewpoints registered around it, those that fit about as well:
