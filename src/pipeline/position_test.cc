@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <memory>
 #include <opencv2/core.hpp>
 
 #include "match/position_fit.h"
@@ -85,6 +86,27 @@ class PositionTest : public ::testing::Test {
   Skyline TrueSkyline(const TerrainWindow& w, const GeodeticPoint& at) const {
     return testing::ExactSkyline(w, at, truth, k, 12'000.0);
   }
+  // The true skyline registered at a position 30 m off and 20 m too high
+  // (no distortion fitted), with the priors of given coordinates.
+  struct OffsetStart {
+    Skyline sky;
+    std::unique_ptr<Site> site;
+    PositionOptions po;
+    RegistrationOptions ro;
+    Registration first;
+  };
+  OffsetStart RegisterOffset() const {
+    OffsetStart o;
+    o.sky = TrueSkyline(window, eye);
+    const auto [lat, lon] = Moved(21.0, -21.0);
+    o.site = std::make_unique<Site>(TerrainWindow(window), lat, lon, Options(eye.height_m + 20.0));
+    o.po = DefaultPositionOptions("arguments", false, std::nullopt);
+    o.ro.dem_error.position_sigma_m = o.po.horizontal_sigma_m;
+    o.ro.dem_error.height_sigma_m = o.po.vertical_sigma_m;
+    o.ro.estimate_distortion = false;
+    o.first = Register(o.sky, o.site->horizon(), o.ro);
+    return o;
+  }
   TerrainWindow window;
   GeodeticPoint eye;
   const CameraIntrinsics k = CameraIntrinsics::FromHfov(640, 400, 60.0);
@@ -92,17 +114,9 @@ class PositionTest : public ::testing::Test {
 };
 
 TEST_F(PositionTest, RecoversAnOffsetPositionWhereNearHillsShowIt) {
-  const Skyline sky = TrueSkyline(window, eye);
-  const auto [lat, lon] = Moved(21.0, -21.0);  // 30 m off, and 20 m too high
-  const Site site(TerrainWindow(window), lat, lon, Options(eye.height_m + 20.0));
-  const PositionOptions po = DefaultPositionOptions("arguments", false, std::nullopt);
-  RegistrationOptions ro;
-  ro.dem_error.position_sigma_m = po.horizontal_sigma_m;
-  ro.dem_error.height_sigma_m = po.vertical_sigma_m;
-  ro.estimate_distortion = false;
-  const Registration first = Register(sky, site.horizon(), ro);
+  const auto [sky, site, po, ro, first] = RegisterOffset();
   ASSERT_GT(first.focal_px, 0.0) << first.message;
-  const PositionEstimate e = RefinePosition(site, sky, first, ro, po);
+  const PositionEstimate e = RefinePosition(*site, sky, first, ro, po);
   ASSERT_TRUE(e.observable) << e.message;
   const Eigen::Vector3d at = LocalFrame(eye).EnuFromGeodetic(e.observer);
   EXPECT_LT(at.head<2>().norm(), 5.0) << e.message << " at " << at.transpose();
@@ -124,20 +138,12 @@ TEST_F(PositionTest, RecoversAnOffsetPositionWhereNearHillsShowIt) {
 // here the same start as above with a pincushion k1 of +0.12 and the focal
 // length 3% short, which held would keep the fit from the true position.
 TEST_F(PositionTest, FitsK1AgainWhenTheRegistrationFittedIt) {
-  const Skyline sky = TrueSkyline(window, eye);
-  const auto [lat, lon] = Moved(21.0, -21.0);
-  const Site site(TerrainWindow(window), lat, lon, Options(eye.height_m + 20.0));
-  const PositionOptions po = DefaultPositionOptions("arguments", false, std::nullopt);
-  RegistrationOptions ro;
-  ro.dem_error.position_sigma_m = po.horizontal_sigma_m;
-  ro.dem_error.height_sigma_m = po.vertical_sigma_m;
-  ro.estimate_distortion = false;
-  Registration first = Register(sky, site.horizon(), ro);
+  auto [sky, site, po, ro, first] = RegisterOffset();
   ASSERT_GT(first.focal_px, 0.0) << first.message;
   first.focal_px *= 0.97;
   first.intrinsics.distortion = LensDistortion::Radial(0.12);
   first.distortion_estimated = true;
-  const PositionEstimate e = RefinePosition(site, sky, first, ro, po);
+  const PositionEstimate e = RefinePosition(*site, sky, first, ro, po);
   ASSERT_TRUE(e.observable_axis[2]) << e.message;
   const Eigen::Vector3d at = LocalFrame(eye).EnuFromGeodetic(e.observer);
   EXPECT_LT(std::abs(at.z()), 3.0) << e.message << " at " << at.transpose();
