@@ -81,6 +81,7 @@ def table(title, cases, binary, baseline=False):
             if pos:
                 de, dn = enu_error(pos["lat"], pos["lon"], lat, lon)
                 row["dh"] = math.hypot(de, dn)
+                row["de"], row["dn"] = de, dn
                 row["dv"] = pos["eye_height_m"] - eye
                 row["sig_h"] = math.hypot(pos["sigma_east_m"], pos["sigma_north_m"])
                 row["sig_v"] = pos["sigma_up_m"]
@@ -138,6 +139,14 @@ def summary(rows, label):
     print(f"{label}: all three axes observable: {len(obs)} (within 5 m / 3 m: {len(good_pos)}); height observable: "
           f"{len(up)}, of those within 3 m: {len(up_ok)} (median |dv| {med('dv', up):.2f} m, was 20); east and north "
           f"observable: {len(hor)}, of those within 5 m: {len(hor_ok)}")
+    # Each horizontal axis alone where it is reported observable (near
+    # terrain ahead tells the distance to it, not the sideways position).
+    axis = []
+    for k, name in (("e", "east"), ("n", "north")):
+        xs = [x for x in reg if k in x.get("obs_str", "")]
+        ok = [x for x in xs if abs(x["d" + k]) <= 5.0]
+        axis.append(f"{name} {len(xs)}, within 5 m {len(ok)} (median |d{k}| {med('d' + k, xs):.2f} m)")
+    print(f"{label}: one horizontal axis observable: " + "; ".join(axis))
     print(f"{label}: median error over the registered: horizontal {med('dh', reg):.2f} m, vertical {med('dv', reg):.2f} m; "
           f"refinement time (timing_ms.position) median {statistics.median(times) if times else float('nan'):.0f} ms, "
           f"max {max(times) if times else float('nan'):.0f} ms")
