@@ -11,7 +11,12 @@ registration there, the stage times; then the summary: located within 200 m
 and registered within 0.3 deg, and false answers: registered more than 1 km off
 or more than 1 deg off in azimuth or pitch (must be 0).
 
-Usage: eval_locate.py HORIZONREG SHARED_DIR [--radius M] [--only NAME,...]
+With --set real, the real photographs of SHARED/real/*/ instead (their
+centre ray is the truth; the eye height above the DEM's ground from their
+altitude): none is expected to be located on a 100 m DEM, and none may be
+located falsely.
+
+Usage: eval_locate.py HORIZONREG SHARED_DIR [--set dev|real] [--radius M] [--only NAME,...]
        [--check] [--min-rate R] [--max-seconds S]
 With --check, exits 1 when fewer than --min-rate (default 0.8) of the scenes
 are located and registered right, when any answer is false, or
@@ -41,7 +46,7 @@ def main():
     argv = sys.argv[1:]
     opt = lambda k, d=None: argv[argv.index(k) + 1] if k in argv else d
     args = [a for i, a in enumerate(argv) if not a.startswith("--") and
-            (i == 0 or argv[i - 1] not in ("--radius", "--only", "--min-rate", "--max-seconds"))]
+            (i == 0 or argv[i - 1] not in ("--radius", "--only", "--min-rate", "--max-seconds", "--set"))]
     if len(args) != 2 or "--help" in sys.argv or "-h" in sys.argv:
         print(__doc__)
         return 0 if ("--help" in sys.argv or "-h" in sys.argv) else 2
@@ -51,18 +56,36 @@ def main():
     min_rate = float(opt("--min-rate", "0.8"))
     max_seconds = float(opt("--max-seconds", "inf"))
     check = "--check" in argv
-    scenes = os.path.join(shared, "scenes", "dev")
-    if not os.path.isdir(scenes):
-        print("SKIPPED: ../shared/scenes/dev is absent")
+    which = opt("--set", "dev")
+    if which not in ("dev", "real"):
+        print(f"eval_locate.py: --set must be dev or real, not {which!r}", file=sys.stderr)
+        return 2
+    # (name, folder) of every photo with a truth file.
+    if which == "dev":
+        folders = [os.path.join(shared, "scenes", "dev")]
+    else:
+        real = os.path.join(shared, "real")
+        folders = sorted(os.path.join(real, d) for d in os.listdir(real)) if os.path.isdir(real) else []
+        folders = [d for d in folders if os.path.isdir(d)]
+    if not folders or not all(os.path.isdir(d) for d in folders):
+        print(f"SKIPPED: the {which} photos of ../shared are absent")
         return 77
-    names = sorted(f[:-11] for f in os.listdir(scenes) if f.endswith(".truth.json"))
-    print(f"{'scene':<13}{'status':<11}{'off_m':>8}{'d_az':>8}{'d_pitch':>8}{'coarse':>7}{'fine':>6}"
+    names = sorted((f[:-11], d) for d in folders for f in os.listdir(d) if f.endswith(".truth.json"))
+    print(f"{'scene':<24}{'status':<11}{'off_m':>8}{'d_az':>8}{'d_pitch':>8}{'coarse':>7}{'fine':>6}"
           f"{'reg':>6}{'total_s':>8}  note")
     rows = []
-    for name in names:
+    for name, scenes in names:
         t = json.load(open(os.path.join(scenes, name + ".truth.json")))
-        if t.get("expect") != "match" or (only and name not in only):
+        if t.get("expect", "match") != "match" or (only and name not in only):
             continue
+        if "agl_m" not in t:  # a real photo: its altitude over the DEM's ground there
+            p = subprocess.run([binary, "horizon", "--dem", os.path.join(shared, "dem", t["dem"]), "--lat",
+                                repr(t["lat"]), "--lon", repr(t["lon"]), "--alt", repr(t["alt_m"]), "--step", "1",
+                                "--max-distance", "1000"], capture_output=True, text=True)
+            if p.returncode != 0:
+                print(f"{name:<24}error      {p.stderr.strip()[:100]}")
+                continue
+            t["agl_m"] = max(1.7, t["alt_m"] - json.loads(p.stdout)["observer"]["ground_height_m"])
         h = int(hashlib.sha1(name.encode()).hexdigest(), 16)
         bearing, dist = h % 360, 2000 + (h // 360) % 4001
         clat, clon = offset(t["lat"], t["lon"], bearing, dist)
@@ -74,7 +97,7 @@ def main():
             p = subprocess.run(cmd, capture_output=True, text=True)
             wall = time.monotonic() - start
             if p.returncode != 0:
-                print(f"{name:<13}error      {p.stderr.strip()[:100]}")
+                print(f"{name:<24}error      {p.stderr.strip()[:100]}")
                 rows.append((name, "error", None, None, None, wall))
                 continue
             r = json.load(open(tmp.name))
@@ -88,7 +111,7 @@ def main():
         dist = r.get("locate", {}).get("distinctiveness")
         note = f"distinct {dist} " + ("" if r.get("status") == "registered" else r.get("message", "")[:60])
         f = lambda v, fmt: format(v, fmt) if v is not None else "-"
-        print(f"{name:<13}{r.get('status'):<11}{f(off, '8.0f')}{f(daz, '8.3f')}{f(dp, '8.3f')}"
+        print(f"{name:<24}{r.get('status'):<11}{f(off, '8.0f')}{f(daz, '8.3f')}{f(dp, '8.3f')}"
               f"{tm.get('coarse', 0) / 1000:7.1f}{tm.get('fine', 0) / 1000:6.1f}{tm.get('register', 0) / 1000:6.1f}"
               f"{wall:8.1f}  {note}")
         rows.append((name, r.get("status"), off, daz, dp, wall))
