@@ -255,7 +255,7 @@ void FinishRegistration(const Scorer& scorer, const ImageFrame& frame, std::vect
   out.evidence_nats = stats.independent_inliers * (second - cost) / 2.0;
   std::ostringstream why;
   why.precision(3);
-  if (stats.informative_columns < options.min_informative_fraction * width)
+  if (!options.TellsThePose(stats.informative_columns, width))
     why << "the horizon seen is too near or the DEM too coarse to tell the pose (informative columns "
         << std::lround(100.0 * stats.informative_columns / width) << "% of the width)";
   else if (out.inlier_fraction < options.min_inlier_fraction)

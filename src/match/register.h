@@ -106,6 +106,11 @@ struct RegistrationOptions {
   // (pipeline/position_check.h).
   bool search_only = false;
   void Check() const;  // Throws InvalidArgument naming the field.
+  // Whether `informative_columns` (Registration::informative_columns) of a
+  // skyline `width` columns wide are enough to tell the pose.
+  bool TellsThePose(double informative_columns, int width) const {
+    return informative_columns >= min_informative_fraction * width;
+  }
 };
 
 // How much the DEM limited the fit (register JSON "dem"): at the final pose,

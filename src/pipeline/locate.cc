@@ -388,7 +388,7 @@ LocateResult LocateInWindow(const TerrainWindow& window, const cv::Mat& image, c
     const Registration r = RegisterImage(image, skyline, hp, ro);
     p.misfit = std::isfinite(r.misfit) ? r.misfit : INFINITY;
     p.registered = r.registered;
-    p.informative = r.informative_columns >= ro.min_informative_fraction * skyline.width;
+    p.informative = ro.TellsThePose(r.informative_columns, skyline.width);
     p.message = r.message;
     p.azimuth = r.pose.azimuth_deg, p.pitch = r.pose.pitch_deg;
     return p;
