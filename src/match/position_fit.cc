@@ -90,7 +90,7 @@ PoseAndPositionFit FitPoseAndPosition(const Skyline& skyline, const HorizonProfi
   const Eigen::Vector3d inv_var = prior_sigma_enu_m.cwiseInverse().cwiseAbs2();
   const Eigen::Vector3d limit = 3.0 * prior_sigma_enu_m;
 
-  Pose4 p = Pose4::From(start, out.focal_px, frame.known() ? 0.0 : k1);
+  Pose4 p = Pose4::From(start, out.focal_px, out.k1);
   Eigen::Vector3d step = Eigen::Vector3d::Zero();
   // Parameters: yaw, pitch, roll (radians), focal length (px), east, north,
   // up (metres), k1 (held at its start unless fit_k1).
