@@ -398,7 +398,6 @@ LocateResult LocateInWindow(const TerrainWindow& window, const cv::Mat& image, c
     p.azimuth = r.pose.azimuth_deg, p.pitch = r.pose.pitch_deg;
     return p;
   };
-  int best = -1;
   for (int i = 0; i < tries; ++i) {
     LocateCandidate& c = out.candidates[i];
     // Runners-up whose profiles fit clearly worse than the best's are not
@@ -455,18 +454,21 @@ LocateResult LocateInWindow(const TerrainWindow& window, const cv::Mat& image, c
     c.misfit = at.misfit;
     c.informative = at.informative;
     c.message = at.message;
-    if (c.registered && (best < 0 || c.misfit < out.candidates[best].misfit)) best = i;
   }
-  // The answer's registration, at the last 3 x 3's half spacing. A best
-  // place whose registration there cannot tell the pose (its near horizon
-  // fitted only at the polish's tight position error: alps_03's best place
-  // 3.8 km off, 11% of the columns informative) is neither the answer nor
-  // a rival; the next registered place is registered instead, once.
+  // The registered place of least misfit (-1: none).
+  auto least_misfit = [&] {
+    int best = -1;
+    for (int i = 0; i < tries; ++i)
+      if (out.candidates[i].registered && (best < 0 || out.candidates[i].misfit < out.candidates[best].misfit))
+        best = i;
+    return best;
+  };
+  // The answer (`best`, or the first place when none registered) registered
+  // at the last 3 x 3's half spacing.
   const double answer_sigma_m = std::max(kAnswerSigmaFloorM, grid / 64);
   po.position_sigma_m = answer_sigma_m;
-  const RegistrationOptions answer_gate = registration_options(answer_sigma_m);
   int answer = 0;
-  for (int attempt = 0;; ++attempt) {
+  auto register_answer = [&](int best) {
     answer = best >= 0 ? best : 0;
     // Other places that register about as well count as equal fits too (two
     // polished places 400 m apart that fit alike leave the position open by
@@ -480,17 +482,21 @@ LocateResult LocateInWindow(const TerrainWindow& window, const cv::Mat& image, c
     out.site = std::make_unique<Site>(TerrainWindow(window), out.candidates[answer].lat_deg,
                                       out.candidates[answer].lon_deg, so, pool);
     out.registration = RegisterPhoto(*out.site, image, po, pool);
-    const Registration& r = out.registration.registration;
-    if (best < 0 || attempt > 0 || r.registered || answer_gate.TellsThePose(r.informative_columns, skyline.width))
-      break;
+  };
+  int best = least_misfit();
+  register_answer(best);
+  // A best place whose registration there cannot tell the pose (its near
+  // horizon fitted only at the polish's tight position error: alps_03's best
+  // place 3.8 km off, 11% of the columns informative) is neither the answer
+  // nor a rival; the next registered place is registered instead, once.
+  if (const Registration& r = out.registration.registration;
+      best >= 0 && !r.registered &&
+      !registration_options(answer_sigma_m).TellsThePose(r.informative_columns, skyline.width)) {
     LocateCandidate& dropped = out.candidates[best];
     dropped.registered = dropped.informative = false;
     dropped.message = r.message;
-    best = -1;
-    for (int i = 0; i < tries; ++i)
-      if (out.candidates[i].registered && (best < 0 || out.candidates[i].misfit < out.candidates[best].misfit))
-        best = i;
-    if (best < 0) break;
+    best = least_misfit();
+    if (best >= 0) register_answer(best);
   }
   out.register_ms = MsSince(t0);
   std::swap(out.candidates[0], out.candidates[answer]);
