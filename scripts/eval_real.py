@@ -37,6 +37,11 @@ Modes (each a per-photo table and a summary):
             pixels change by ~0.2 grey levels on average (an upload, an
             export); the registration should not. Counts the photos within
             0.5 deg (--floors reencode=N, default 0) and the false ones (0)
+  gray      (not in the default set) plain on each photo turned to grey
+            (luma, saved as JPEG quality 95 with its EXIF segment kept): a
+            black-and-white archive print or a monochrome webcam, with no
+            chroma to tell blue sky from white snow. Counts the photos within
+            0.5 deg (--floors gray=N, default 0) and the false ones (0)
   ring      (not in the default set; about 1 minute) register from a ring of
             wrong positions, 12 bearings (every 30 deg) at 2, 3 and 5 km:
             wrong's 5 offsets sample a few bearings, and from a position 2-3 km
@@ -313,7 +318,7 @@ def main():
     jobs = int(opt("--jobs", "2"))
     floors = {"plain": 12, "camera": 12, "initial": 13, "skyline": 0.9, "thin": 0.9, "skyline-given": 0.95,
               "thin-given": 0.95, "ring": 0, "ring-camera": 0, "ring-initial": 0, "ring-sensors": 0, "ring-noexif": 0,
-              "sensors": 0, "noexif": 0, "reencode": 0}
+              "sensors": 0, "noexif": 0, "reencode": 0, "gray": 0}
     for kv in (opt("--floors") or "").split(","):
         if "=" in kv:
             k, v = kv.split("=")
@@ -384,7 +389,7 @@ def main():
             print(f"FAIL: --{mode} misses its floor or has a false registration")
             failed = True
     # Plain registration of a copy of each photo: its pixels alone (no EXIF),
-    # or re-encoded with its EXIF kept.
+    # re-encoded with its EXIF kept, or turned to grey with its EXIF kept.
     def without_exif(cv2, source, path):
         return cv2.imwrite(path, cv2.imread(source))
 
@@ -394,9 +399,16 @@ def main():
             with open(path, "wb") as f:
                 f.write(with_exif_of(open(source, "rb").read(), data.tobytes()))
         return ok
+    def grey(cv2, source, path):
+        ok, data = cv2.imencode(".jpg", cv2.imread(source, cv2.IMREAD_GRAYSCALE), [cv2.IMWRITE_JPEG_QUALITY, 95])
+        if ok:
+            with open(path, "wb") as f:
+                f.write(with_exif_of(open(source, "rb").read(), data.tobytes()))
+        return ok
     for mode, suffix, title, write in (
             ("noexif", ".noexif.png", "no prior, no EXIF (the pixels alone, as PNG)", without_exif),
-            ("reencode", ".q95.jpg", "no prior, re-encoded as JPEG quality 95 (EXIF kept)", reencoded)):
+            ("reencode", ".q95.jpg", "no prior, re-encoded as JPEG quality 95 (EXIF kept)", reencoded),
+            ("gray", ".gray.jpg", "no prior, grey (luma only, JPEG quality 95, EXIF kept)", grey)):
         if mode not in modes:
             continue
         cv2 = opencv_for(mode)
