@@ -385,6 +385,16 @@ std::optional<Registration> RecheckWithGuidedSkyline(const cv::Mat& image, const
     for (int r = r0; r < r0 + 3; ++r) m += cv::Vec3d(bgr.at<cv::Vec3b>(r, c));
     return m / 3.0;
   };
+  // Whether the rows above a step at row r of column c are sky: the 3 rows
+  // from `gap` rows above it continue the 3 above those. Read next to the
+  // step (gap 3) or, on a soft real edge whose transition still fills those
+  // rows (a hazy snow ridge fades from sky to snow over 4-6 rows), further
+  // up (gap 6): AKJNC_20120813 has 184 columns re-read instead of 75, and
+  // re-encoded (JPEG quality 95), grey or EXIF-less copies of the real
+  // photos register 25 of 39 instead of 21.
+  auto sky_above = [&](int r, int gap, int c) {
+    return r - gap - 3 >= 0 && cv::norm(mean3(r - gap, c) - mean3(r - gap - 3, c)) <= 0.5 * kMinStep;
+  };
   std::vector<double> scores;
   // The skyline re-read near the horizon projected at `pose`, and how many
   // columns were re-read.
@@ -401,7 +411,7 @@ std::optional<Registration> RecheckWithGuidedSkyline(const cv::Mat& image, const
       if (hi < lo) continue;
       const auto [r, yr, contrast] = StrongestStep(
           lo, hi, [&](int row) { return cv::norm(mean3(row, c) - mean3(row - 3, c)); }, scores);
-      if (contrast < kMinStep || cv::norm(mean3(r - 3, c) - mean3(r - 6, c)) > 0.5 * kMinStep) continue;
+      if (contrast < kMinStep || !(sky_above(r, 3, c) || sky_above(r, 6, c))) continue;
       out.first.y[c] = yr;
       if (c < static_cast<int>(out.first.y_alt.size())) out.first.y_alt[c] = NAN;  // re-read: one candidate
       out.first.confidence[c] = std::min(1.0, contrast / (4.0 * kMinStep));
@@ -425,14 +435,22 @@ std::optional<Registration> RecheckWithGuidedSkyline(const cv::Mat& image, const
   } else if (r.registered) {
     // The re-read skyline must register on its own, by the whole decision
     // (ambiguity and evidence included), at the same pose.
-    const Registration search = Register(guided, horizon, options);
+    // ... with no sensor prior: a re-read near the pose found helps that
+    // pose wherever the camera stands, and the compass's gate would hide the
+    // rivals that refuse it from a wrong position (from 2 km beside
+    // AKJNC_20120813, sensors 2 deg off, 3 of 36 ring probes registered 3-5
+    // deg off; searched over the whole horizon, none). As with --initial,
+    // the priors cannot vouch for the position.
+    RegistrationOptions free = options;
+    free.prior = SensorPrior{};
+    const Registration search = Register(guided, horizon, free);
     if (!search.registered) {
       r.registered = false;
       m << "the re-read skyline does not register on its own (" << search.message << "); " << first.message;
     } else if (moved(search.pose)) {
       r.registered = false;
       m << "the re-read skyline registers elsewhere; " << first.message;
-    } else if (const double rival = RivalAfterItsOwnReread(search, reread_at, horizon, options, w, h);
+    } else if (const double rival = RivalAfterItsOwnReread(search, reread_at, horizon, free, w, h);
                rival < kMinRivalMisfitRatio) {
       // Re-reading near a pose's own projection helps any pose; the best
       // alternative given the same help must still fit clearly worse.

@@ -323,6 +323,32 @@ TEST_F(GuidedSkylineTest, ANearMissBecomesARegistrationAtTheTruePose) {
   EXPECT_TRUE(RegisterImage(image, skyline, horizon, RegistrationOptions{}).registered);
 }
 
+// A real snow ridge under a hazy sky fades from sky to snow over several
+// rows: the rows just above the step are still the transition, and the sky
+// is read further up.
+TEST_F(GuidedSkylineTest, ASoftSnowEdgeIsReadToo) {
+  const cv::Vec3d sky(230, 200, 170), snow(235, 235, 235);
+  const std::vector<double> truth_y = PredictedSkyline(horizon, truth, k);
+  for (int c = 0; c < k.width * 30 / 100; ++c) {
+    const int top = static_cast<int>(std::lround(truth_y[c]));
+    for (int i = 0; i < 6; ++i) {  // rows top - 3 .. top + 2 from sky to snow
+      const int r = top - 3 + i;
+      if (r < 0 || r >= k.height) continue;
+      const cv::Vec3d v = sky + (snow - sky) * ((i + 0.5) / 6.0);
+      image.at<cv::Vec3b>(r, c) = cv::Vec3b(cv::saturate_cast<uint8_t>(v[0]), cv::saturate_cast<uint8_t>(v[1]),
+                                            cv::saturate_cast<uint8_t>(v[2]));
+    }
+  }
+  const Registration first = Register(skyline, horizon, RegistrationOptions{});
+  ASSERT_FALSE(first.registered) << first.message;
+  const auto again = RecheckWithGuidedSkyline(image, skyline, horizon, first, RegistrationOptions{});
+  ASSERT_TRUE(again);
+  ASSERT_TRUE(again->registered) << again->message;
+  EXPECT_NEAR(AngDiffDeg(again->pose.azimuth_deg, truth.azimuth_deg), 0.0, 0.05);
+  EXPECT_NEAR(again->pose.pitch_deg, truth.pitch_deg, 0.05);
+  EXPECT_GE(again->inlier_fraction, 0.95);
+}
+
 TEST_F(GuidedSkylineTest, AUniformSkyOrAWrongPoseIsNotConfirmed) {
   const Registration first = Register(skyline, horizon, RegistrationOptions{});
   ASSERT_FALSE(first.registered) << first.message;
