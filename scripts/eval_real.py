@@ -393,18 +393,19 @@ def main():
     def without_exif(cv2, source, path):
         return cv2.imwrite(path, cv2.imread(source))
 
+    def jpeg_copy(cv2, source, path, grey=False):
+        image = cv2.imread(source, cv2.IMREAD_GRAYSCALE if grey else cv2.IMREAD_COLOR)
+        ok, data = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, 95])
+        if ok:
+            with open(path, "wb") as f:
+                f.write(with_exif_of(open(source, "rb").read(), data.tobytes()))
+        return ok
+
     def reencoded(cv2, source, path):
-        ok, data = cv2.imencode(".jpg", cv2.imread(source), [cv2.IMWRITE_JPEG_QUALITY, 95])
-        if ok:
-            with open(path, "wb") as f:
-                f.write(with_exif_of(open(source, "rb").read(), data.tobytes()))
-        return ok
+        return jpeg_copy(cv2, source, path)
+
     def grey(cv2, source, path):
-        ok, data = cv2.imencode(".jpg", cv2.imread(source, cv2.IMREAD_GRAYSCALE), [cv2.IMWRITE_JPEG_QUALITY, 95])
-        if ok:
-            with open(path, "wb") as f:
-                f.write(with_exif_of(open(source, "rb").read(), data.tobytes()))
-        return ok
+        return jpeg_copy(cv2, source, path, grey=True)
     for mode, suffix, title, write in (
             ("noexif", ".noexif.png", "no prior, no EXIF (the pixels alone, as PNG)", without_exif),
             ("reencode", ".q95.jpg", "no prior, re-encoded as JPEG quality 95 (EXIF kept)", reencoded),
