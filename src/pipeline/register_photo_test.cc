@@ -289,8 +289,8 @@ class GuidedSkylineTest : public ::testing::Test {
  protected:
   void SetUp() override {
     horizon = testing::MakeConeRing().horizon;
-    const std::vector<double> truth_y = PredictedSkyline(horizon, truth, k);
-    image = cv::Mat(k.height, k.width, CV_8UC3, cv::Scalar(230, 200, 170));  // sky
+    truth_y = PredictedSkyline(horizon, truth, k);
+    image = cv::Mat(k.height, k.width, CV_8UC3, kSky);
     skyline.width = k.width;
     skyline.height = k.height;
     skyline.y = truth_y;
@@ -299,7 +299,7 @@ class GuidedSkylineTest : public ::testing::Test {
       const bool snow = c < k.width * 30 / 100;
       const int top = static_cast<int>(std::lround(truth_y[c]));
       for (int r = std::max(0, top); r < k.height; ++r)
-        image.at<cv::Vec3b>(r, c) = r < top + 25 && snow ? cv::Vec3b(235, 235, 235) : cv::Vec3b(60, 110, 70);
+        image.at<cv::Vec3b>(r, c) = r < top + 25 && snow ? kSnow : cv::Vec3b(60, 110, 70);
       if (snow) skyline.y[c] = top + 25.0;
     }
   }
@@ -313,9 +313,11 @@ class GuidedSkylineTest : public ::testing::Test {
     EXPECT_NEAR(again->pose.pitch_deg, truth.pitch_deg, 0.05);
     EXPECT_GE(again->inlier_fraction, 0.95);
   }
+  const cv::Vec3b kSky{230, 200, 170}, kSnow{235, 235, 235};  // BGR
   const CameraIntrinsics k = CameraIntrinsics::FromHfov(480, 320, 50.0);
   const CameraPose truth{25.0, 2.0, 0.5};
   HorizonProfile horizon;
+  std::vector<double> truth_y;  // the horizon projected at the true pose
   cv::Mat image;
   Skyline skyline;
 };
@@ -324,7 +326,7 @@ TEST_F(GuidedSkylineTest, ANearMissBecomesARegistrationAtTheTruePose) {
   const Registration first = Register(skyline, horizon, RegistrationOptions{});
   ASSERT_FALSE(first.registered) << first.message;  // 70% fit, and the misread columns leave it ambiguous
   ASSERT_GE(first.inlier_fraction, RegistrationOptions{}.min_inlier_fraction - 0.2) << first.message;
-  ExpectTheSecondLookRegistersTheTruth(first);
+  ASSERT_NO_FATAL_FAILURE(ExpectTheSecondLookRegistersTheTruth(first));
   EXPECT_TRUE(RegisterImage(image, skyline, horizon, RegistrationOptions{}).registered);
 }
 
@@ -332,8 +334,7 @@ TEST_F(GuidedSkylineTest, ANearMissBecomesARegistrationAtTheTruePose) {
 // rows: the rows just above the step are still the transition, and the sky
 // is read further up.
 TEST_F(GuidedSkylineTest, ASoftSnowEdgeIsReadToo) {
-  const cv::Vec3d sky(230, 200, 170), snow(235, 235, 235);
-  const std::vector<double> truth_y = PredictedSkyline(horizon, truth, k);
+  const cv::Vec3d sky(kSky), snow(kSnow);
   for (int c = 0; c < k.width * 30 / 100; ++c) {
     const int top = static_cast<int>(std::lround(truth_y[c]));
     for (int i = 0; i < 6; ++i) {  // rows top - 3 .. top + 2 from sky to snow
@@ -346,7 +347,7 @@ TEST_F(GuidedSkylineTest, ASoftSnowEdgeIsReadToo) {
   }
   const Registration first = Register(skyline, horizon, RegistrationOptions{});
   ASSERT_FALSE(first.registered) << first.message;
-  ExpectTheSecondLookRegistersTheTruth(first);
+  ASSERT_NO_FATAL_FAILURE(ExpectTheSecondLookRegistersTheTruth(first));
 }
 
 TEST_F(GuidedSkylineTest, AUniformSkyOrAWrongPoseIsNotConfirmed) {
@@ -355,8 +356,7 @@ TEST_F(GuidedSkylineTest, AUniformSkyOrAWrongPoseIsNotConfirmed) {
   // No snow: the sky really reaches down to the extracted boundary.
   cv::Mat plain = image.clone();
   for (int c = 0; c < k.width; ++c)
-    for (int r = 0; r < static_cast<int>(skyline.y[c]) && r < k.height; ++r)
-      plain.at<cv::Vec3b>(r, c) = cv::Vec3b(230, 200, 170);
+    for (int r = 0; r < static_cast<int>(skyline.y[c]) && r < k.height; ++r) plain.at<cv::Vec3b>(r, c) = kSky;
   const auto none = RecheckWithGuidedSkyline(plain, skyline, horizon, first, RegistrationOptions{});
   EXPECT_TRUE(!none || !none->registered);
   EXPECT_FALSE(RegisterImage(plain, skyline, horizon, RegistrationOptions{}).registered);
