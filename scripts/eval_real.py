@@ -12,6 +12,10 @@ Modes (each a per-photo table and a summary):
   initial   register --initial 2 deg off the truth in azimuth, then pitch (+-)
   traced    register --skyline with the hand-traced horizon (the matching alone)
   skyline   skyline accuracy against the hand-traced horizon (traced columns)
+  registered-skyline  the same for `register --skyline-out` (registered with
+            no prior; where registered, the skyline read again near the DEM
+            horizon at the pose; --floors registered-skyline=W,
+            registered-skyline-given=G)
   thin      the same on each photo cropped from the top to leave only 10 px of
             sky above the traced horizon's highest point (a camera pitched
             down, a thin strip of sky: common at time-lapse stations)
@@ -82,7 +86,7 @@ false.
 """
 import concurrent.futures, json, math, os, statistics, subprocess, sys, tempfile
 
-ALL_MODES = ["plain", "camera", "initial", "traced", "traced-pinhole", "skyline", "thin", "wrong", "wrong-camera",
+ALL_MODES = ["plain", "camera", "initial", "traced", "traced-pinhole", "skyline", "registered-skyline", "thin", "wrong", "wrong-camera",
              "wrong-initial"]
 THIN_SKY_PX = 10  # the thin mode's sky left above the traced horizon's highest point
 # Positions 2-10 km away (bearing deg, distance m) and other regions' DEMs
@@ -263,12 +267,16 @@ def pose_table(title, rows, tol):
     return len(good), len(false), med("daz"), med("dp")
 
 
-def skyline_table(binary, photos, thin_sky_px=None):
+def skyline_table(binary, photos, thin_sky_px=None, shared=None):
     """Per photo and in all: the traced columns given a value and within 2 px.
     With thin_sky_px, each photo is first cropped from the top to leave that
     many rows above the traced horizon's highest point (the trace shifted
-    with it)."""
-    if thin_sky_px is None:
+    with it). With shared (the registered mode), the skyline is the one
+    `register --skyline-out` writes, the photo registered with no prior:
+    read again near the DEM horizon where registered."""
+    if shared is not None:
+        print("\n== register --skyline-out against the hand-traced horizon (traced columns only) ==")
+    elif thin_sky_px is None:
         print("\n== skyline against the hand-traced horizon (traced columns only) ==")
     else:
         cv2 = opencv_for("thin")
@@ -289,7 +297,13 @@ def skyline_table(binary, photos, thin_sky_px=None):
                 full = cv2.imread(image)
                 image = os.path.join(tmp, "crop.png")
                 cv2.imwrite(image, full[top:])
-            subprocess.run([binary, "skyline", image, "--json", os.path.join(tmp, "s.json")], check=True)
+            if shared is not None:
+                r = register(binary, shared, photo_dir, name, t, ["--skyline-out", os.path.join(tmp, "s.json")])
+                if r["status"] == "error":
+                    print(f"{name:<24} error: {r['message']}")
+                    continue
+            else:
+                subprocess.run([binary, "skyline", image, "--json", os.path.join(tmp, "s.json")], check=True)
             s = json.load(open(os.path.join(tmp, "s.json")))
         d = [abs(s["y"][x] + top - y) for x, y in traced if s["y"][x] is not None]
         given = len(d)
@@ -317,6 +331,7 @@ def main():
     overlay_dir = opt("--overlay-dir")
     jobs = int(opt("--jobs", "2"))
     floors = {"plain": 12, "camera": 12, "initial": 13, "skyline": 0.9, "thin": 0.9, "skyline-given": 0.95,
+              "registered-skyline": 0.9, "registered-skyline-given": 0.95,
               "thin-given": 0.95, "ring": 0, "ring-camera": 0, "ring-initial": 0, "ring-sensors": 0, "ring-noexif": 0,
               "sensors": 0, "noexif": 0, "reencode": 0, "gray": 0}
     for kv in (opt("--floors") or "").split(","):
@@ -446,6 +461,11 @@ def main():
             return p[0], p[1], register(binary, shared, p[2], p[0], p[1], ["--skyline", path, "--pinhole"])
         rows = [r for r in run_all(traced_pinhole) if r]
         pose_table("--skyline --pinhole: the hand-traced horizon, no k1", rows, 0.5)
+    if "registered-skyline" in modes:
+        w, g = skyline_table(binary, photos, shared=shared)
+        if check and (w < floors["registered-skyline"] or g < floors["registered-skyline-given"]):
+            print("FAIL: the registered skyline's accuracy or coverage misses its floor")
+            failed = True
     if "skyline" in modes:
         w, g = skyline_table(binary, photos)
         if check and (w < floors["skyline"] or g < floors["skyline-given"]):

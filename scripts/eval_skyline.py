@@ -6,14 +6,18 @@ inside the image; fog scenes reported apart, their horizon is not visible):
 median |y - truth|, share within 2 px, share given a value (coverage); over
 occluded columns, the share given a value off by more than 3 px; in fog
 scenes (horizon hidden), the share of columns given a value.
-Usage: eval_skyline.py HORIZONREG SHARED_DIR [--check] [--debug-dir DIR]
+Usage: eval_skyline.py HORIZONREG SHARED_DIR [--check] [--debug-dir DIR] [--registered]
 With --check, exits 1 when a total misses the issue's targets.
+With --registered, the skyline is the one `register --skyline-out` writes
+(each scene registered at its true position; where registered, the skyline
+read again near the DEM horizon at the pose), not `skyline`'s.
 """
 import json, os, subprocess, sys, tempfile
 
 def main():
     args = [a for a in sys.argv[1:] if not a.startswith("--")]
     check = "--check" in sys.argv
+    registered = "--registered" in sys.argv
     debug_dir = None
     if "--debug-dir" in sys.argv:
         debug_dir = sys.argv[sys.argv.index("--debug-dir") + 1]
@@ -34,8 +38,13 @@ def main():
     for name in names:
         truth = json.load(open(os.path.join(scenes_dir, name + ".truth.json")))
         with tempfile.NamedTemporaryFile(suffix=".json") as tmp:
-            cmd = [binary, "skyline", os.path.join(scenes_dir, name + ".jpg"), "--json", tmp.name]
-            if debug_dir:
+            image = os.path.join(scenes_dir, name + ".jpg")
+            cmd = [binary, "skyline", image, "--json", tmp.name]
+            if registered:
+                cmd = [binary, "register", image, "--dem", os.path.join(shared, "dem", truth["dem"]),
+                       "--lat", repr(truth["lat"]), "--lon", repr(truth["lon"]), "--agl", repr(truth["agl_m"]),
+                       "--skyline-out", tmp.name, "--json", os.devnull]
+            if debug_dir and not registered:
                 cmd += ["--debug", os.path.join(debug_dir, name + ".png")]
             subprocess.run(cmd, check=True)
             out = json.load(open(tmp.name))

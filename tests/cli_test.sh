@@ -142,6 +142,17 @@ assert j["status"] == "registered", j
 assert abs((j["azimuth_deg"] - t["yaw_deg"] + 180) % 360 - 180) < 0.3 and abs(j["pitch_deg"] - t["pitch_deg"]) < 0.2
 PY
   file "$work/r.png" | grep -q "PNG image data, 1024 x 683" && ok "register overlay png" || bad "register overlay png"
+  "$bin" register "$sc/zion_01.jpg" --dem "$shared/dem/zion_srtm.tif" --lat 37.368515 --lon -113.161021 --agl 1.7 \
+    --json "$work/rk.json" --skyline-out "$work/rk_sky.json" && python3 - "$work/rk_sky.json" "$sc/zion_01.truth.json" <<'PY' \
+    && ok "register --skyline-out: a skyline JSON near the truth" || bad "register --skyline-out"
+import json, sys
+s, t = json.load(open(sys.argv[1])), json.load(open(sys.argv[2]))
+assert s["width"] == 1024 and s["height"] == 683 and len(s["y"]) == 1024 and len(s["confidence"]) == 1024, s.keys()
+near = sum(1 for y, r in zip(s["y"], t["skyline_row"]) if y is not None and r is not None and 0 < r < 683 and abs(y - r) <= 2)
+assert near >= 0.9 * 1024, near
+PY
+  expect_exit2 "register unwritable --skyline-out" register "$sc/zion_01.jpg" --dem "$shared/dem/zion_srtm.tif" \
+    --lat 37.368515 --lon -113.161021 --json "$work/out.json" --skyline-out "/nonexistent/dir/s.json"
   "$bin" register "$sc/zion_01.jpg" --dem "$shared/dem/zion_srtm.tif" --lat 37.368515 --lon -113.161021 \
     --initial 313.5,-1.5,1.5,40.5 | grep -q '"status": "registered"' && ok "register --initial refines a known pose" || bad "register --initial"
   expect_exit2 "register bad --initial" register "$sc/zion_01.jpg" --dem "$shared/dem/zion_srtm.tif" --lat 37.37 --lon -113.16 --initial 1,2,3 --json "$work/out.json"

@@ -2,6 +2,7 @@
 // One Run<Command>() per subcommand (STYLE.md: cli/main.cc is the dispatcher).
 #pragma once
 
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
 #include <vector>
@@ -47,7 +48,7 @@ struct RegisterArgs {
   std::string dem_dir;
   bool sea_level_fill = false;
   std::optional<double> lat, lon, agl, alt, hfov, position_sigma;
-  std::string sensors, hfov_range, json, overlay, landmarks, initial, camera, skyline;
+  std::string sensors, hfov_range, json, overlay, landmarks, initial, camera, skyline, skyline_out;
   double refraction = kDefaultRefraction;
   double max_distance = 100'000.0;
   double step = 0.1;  // finer than `horizon`'s default: each bin holds its maximum, 0.25 deg bins bias pitch
@@ -111,6 +112,8 @@ CameraPoseFile ReadPoseFile(const std::string& path);
 // InvalidArgument naming the file when it is malformed or not for a
 // width x height image.
 Skyline ReadSkylineJson(const std::string& path, int width, int height);
+// The skyline JSON of `s` (DESIGN.md), as `skyline --json` writes it.
+nlohmann::json SkylineJson(const Skyline& s);
 
 struct RenderArgs {
   std::vector<std::string> dem;

@@ -68,6 +68,9 @@ void AddRegisterCommand(CLI::App& app, RegisterArgs& a) {
               "The photo has no lens distortion (rectified): do not fit k1 without a --camera file");
   c->add_flag("--no-exif", a.no_exif, "Ignore the photo's EXIF (GPS, focal length, direction)");
   c->add_option("--json", a.json, "Write the JSON here instead of stdout");
+  c->add_option(
+      "--skyline-out", a.skyline_out,
+      "Write the skyline JSON: when registered, read again near the DEM horizon at the pose; else as extracted");
   c->add_option("--overlay", a.overlay, "Draw the overlay at the recovered pose over the photo into this PNG");
   c->add_option("--landmarks", a.landmarks, "Named peaks for the overlay labels (GeoJSON or CSV)");
   AddMaxImageOption(*c, a.max_image_mpx);
@@ -135,6 +138,8 @@ int RunRegister(const RegisterArgs& a) {
   PhotoRegistration photo = RegisterPhoto(*site, image, po, &pool);
   photo.skyline_ms = skyline_ms;
   if (!a.overlay.empty()) WriteImage(a.overlay, DrawRegistration(*site, image, photo, a.landmarks));
+  if (!a.skyline_out.empty())
+    WriteOutput(a.skyline_out, SkylineJson(RegisteredSkyline(*site, image, photo)).dump() + "\n");
   const nlohmann::json j = RegistrationReport(*site, photo, position.source,
                                               std::chrono::duration<double, std::milli>(Clock::now() - t0).count());
   WriteOutput(a.json.empty() ? "-" : a.json, j.dump(1) + "\n");

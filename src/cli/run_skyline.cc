@@ -33,6 +33,14 @@ int RunSkyline(const SkylineArgs& a) {
   const auto t0 = std::chrono::steady_clock::now();
   const Skyline s = ExtractSkyline(image, o);
   const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  nlohmann::json j = SkylineJson(s);
+  j["timing_ms"] = {{"skyline", Rounded(ms, 2)}};
+  if (!a.debug.empty()) WriteImage(a.debug, DrawSkylineDebug(image, s));
+  WriteOutput(a.json.empty() ? "-" : a.json, j.dump() + "\n");
+  return 0;
+}
+
+nlohmann::json SkylineJson(const Skyline& s) {
   nlohmann::json j;
   j["width"] = s.width;
   j["height"] = s.height;
@@ -44,10 +52,7 @@ int RunSkyline(const SkylineArgs& a) {
   j["y"] = std::move(ys);
   j["confidence"] = std::move(cs);
   j["visible_columns"] = s.VisibleCount();
-  j["timing_ms"] = {{"skyline", Rounded(ms, 2)}};
-  if (!a.debug.empty()) WriteImage(a.debug, DrawSkylineDebug(image, s));
-  WriteOutput(a.json.empty() ? "-" : a.json, j.dump() + "\n");
-  return 0;
+  return j;
 }
 
 Skyline ReadSkylineJson(const std::string& path, int width, int height) {

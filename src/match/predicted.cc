@@ -4,6 +4,8 @@
 #include <cmath>
 #include <optional>
 
+#include "match/fit.h"
+#include "match/fit_model.h"
 #include "util/angles.h"
 
 namespace horizonreg {
@@ -30,6 +32,31 @@ std::vector<double> PredictedSkyline(const HorizonProfile& horizon, const Camera
     prev = p;
   }
   return y;
+}
+
+SkylineWindow ExpectedSkylineWindow(const HorizonProfile& horizon, const Registration& r,
+                                    const RegistrationOptions& options, int width, int height) {
+  SkylineWindow out;
+  if (!(r.focal_px > 0.0)) return out;
+  constexpr double kFlattenings = 4.0, kSigmas = 3.0;
+  const CameraIntrinsics k = r.Intrinsics(width, height);
+  out.predicted = PredictedSkyline(horizon, r.pose, k);
+  out.above_px.assign(width, NAN);
+  out.below_px.assign(width, NAN);
+  const double scale = std::isfinite(r.dem.flattening_scale) ? r.dem.flattening_scale : 1.0;
+  const match_detail::HorizonLookup lookup(horizon, match_detail::ScaledModel(options.dem_error, scale));
+  const Eigen::Matrix3d m = CamFromEnu(r.pose);
+  const double sigma = match_detail::SigmaPx(options, width);
+  for (int x = 0; x < width; ++x) {
+    const double y = out.predicted[x];
+    if (!std::isfinite(y)) continue;
+    const Eigen::Vector3d d = UnprojectToEnu(m, k, Eigen::Vector2d(x + 0.5, y));
+    const double az = std::atan2(d.x(), d.y());
+    const double noise = std::hypot(sigma, k.focal_px * lookup.PositionSigmaRad(az));
+    out.below_px[x] = kSigmas * noise;
+    out.above_px[x] = kSigmas * noise + kFlattenings * k.focal_px * lookup.FlatteningRad(az);
+  }
+  return out;
 }
 
 }  // namespace horizonreg

@@ -247,6 +247,14 @@ PhotoRegistration RegisterPhoto(const Site& site, const cv::Mat& image_in, const
   return out;
 }
 
+Skyline RegisteredSkyline(const Site& site, const cv::Mat& image_in, const PhotoRegistration& photo) {
+  const Registration& r = photo.registration;
+  const cv::Mat image = AsBgr(image_in);
+  if (!r.registered || image.cols != photo.skyline.width || image.rows != photo.skyline.height) return photo.skyline;
+  const SkylineWindow win = ExpectedSkylineWindow(photo.Horizon(site), r, photo.options, image.cols, image.rows);
+  return GuideSkyline(image, photo.skyline, win.predicted, win.above_px, win.below_px);
+}
+
 void RefinePhotoPosition(const Site& site, const cv::Mat& image, const PositionOptions& position_options,
                          const RegistrationOptions& ro, PhotoRegistration& out, ThreadPool* pool) {
   const auto t0 = std::chrono::steady_clock::now();
@@ -467,6 +475,5 @@ std::optional<Registration> RecheckWithGuidedSkyline(const cv::Mat& image, const
   r.message = m.str();
   return r;
 }
-
 
 }  // namespace horizonreg

@@ -120,6 +120,13 @@ std::string UnknownFovHint(const Registration& r, const std::string& fov_source,
 PhotoRegistration RegisterPhoto(const Site& site, const cv::Mat& image, const PhotoOptions& options,
                                 ThreadPool* pool = nullptr);
 
+// The photo's skyline as the registration sees it (`register --skyline-out`):
+// when registered, read again near the DEM horizon projected at the pose,
+// inside the window the registration's DEM error model allows
+// (ExpectedSkylineWindow, GuideSkyline); else the extracted one. `image` is
+// the registered photo.
+Skyline RegisteredSkyline(const Site& site, const cv::Mat& image, const PhotoRegistration& photo);
+
 // PhotoOptions::refine_position's step of RegisterPhoto, after the
 // registration at the site: RefinePosition from it, then the registration
 // again at the estimate (RegisterImage, the whole decision). When that one

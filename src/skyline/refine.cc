@@ -43,10 +43,8 @@ double HalfWayCrossing(int from, int to, const Share& t) {
   return NAN;
 }
 
-// Per column x with a strip (first[x] != kNoStrip): `count` rows from
-// first[x] (rows outside the image repeat the edge row) of the column averaged
-// with `half` neighbours on each side (fewer at the image's edges), rounded;
-// BGR, column after column.
+}  // namespace
+
 void AverageStrips(const cv::Mat& bgr, const std::vector<int>& first, int count, int half, std::vector<uint8_t>& out) {
   const int h = bgr.rows, w = bgr.cols;
   out.assign(3 * static_cast<size_t>(w) * count, 0);
@@ -63,8 +61,6 @@ void AverageStrips(const cv::Mat& bgr, const std::vector<int>& first, int count,
     }
   }
 }
-
-}  // namespace
 
 void GatherStrips(const cv::Mat& bgr, RefineStrips& strips) {
   AverageStrips(bgr, strips.first, strips.count, 0, strips.column.bgr);

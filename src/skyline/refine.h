@@ -58,6 +58,12 @@ struct RefineStrips {
   static constexpr int kNoStrip = std::numeric_limits<int>::min();
 };
 
+// Per column x with a strip (first[x] != RefineStrips::kNoStrip): `count`
+// rows from first[x] (rows outside the image repeat the edge row) of the
+// column averaged with `half` neighbours on each side (fewer at the image's
+// edges), rounded; BGR, column after column (strip x from 3 * x * count).
+void AverageStrips(const cv::Mat& bgr, const std::vector<int>& first, int count, int half, std::vector<uint8_t>& out);
+
 // Fills the strips: `count` rows from first[x] (rows outside the image
 // repeat the edge row), and converts them.
 void GatherStrips(const cv::Mat& bgr, RefineStrips& strips);

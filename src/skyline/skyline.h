@@ -69,6 +69,29 @@ struct Skyline {
 // for its next call, so a video's frames do not fault in fresh memory.
 Skyline ExtractSkyline(const cv::Mat& image, const SkylineOptions& options);
 
+// The skyline read again where a registered pose predicts it: `predicted`
+// is the DEM horizon projected at that pose (per column, NaN where none),
+// which a coarse DEM flattens, so that the true skyline lies up to
+// above_px[x] above it and up to below_px[x] below it (at most 40 rows in
+// all per 1024 columns are read). A column whose extracted boundary lies
+// below that window (the extractor stopped at a clearer edge under a hazy
+// ridge) is read again, the column averaged with two neighbours on each
+// side: from the top of the window down, the first row whose 16 rows above
+// (less the one next to it, which a sloping edge half fills) are smooth sky
+// (a quadratic per CIELAB channel, 90% of them within half the threshold),
+// and from which the column departs from that fit by more than max(4
+// robust sigmas, 3 delta E) in 80% of the rows down to the extracted
+// boundary (6 to 12 of them: a thin cloud has sky under it), starts the
+// terrain; the boundary is the half-way crossing from the fitted sky to
+// the colour of the 3 rows below (rows scale with the width over 1024). A
+// value read so more than 3 px (per 1024 columns) from the median of the 5
+// columns on each side (a band of haze) is dropped. Every other column
+// keeps its extracted value, null ones too (a tree, fog); y_alt is cleared.
+// `image` is 8-bit BGR of the skyline's size; throws InvalidArgument
+// otherwise. Columns with a negative or NaN window are left alone.
+Skyline GuideSkyline(const cv::Mat& image, const Skyline& skyline, const std::vector<double>& predicted,
+                     const std::vector<double>& above_px, const std::vector<double>& below_px);
+
 // Draws the skyline over the image (coloured by confidence, null columns
 // marked at the top edge) for inspection.
 cv::Mat DrawSkylineDebug(const cv::Mat& image, const Skyline& skyline);
