@@ -9,6 +9,7 @@
 
 #include "geo/geodesy.h"
 #include "render/render.h"
+#include "testing/flat_skyline.h"
 #include "testing/near_far.h"
 #include "testing/synthetic_dem.h"
 #include "util/angles.h"
@@ -20,14 +21,7 @@ namespace {
 using locate_detail::Coarsen;
 using locate_detail::MatchProfile;
 using locate_detail::SkylineProfile;
-
-Skyline FlatSkyline(int w, int h, double row) {
-  Skyline s;
-  s.width = w, s.height = h;
-  s.y.assign(w, row);
-  s.confidence.assign(w, 1.0);
-  return s;
-}
+using testing::FlatSkyline;
 
 TEST(SkylineProfile, GivesEachSamplesRayElevation) {
   const int w = 800, h = 500;

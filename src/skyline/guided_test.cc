@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "skyline/skyline.h"
+#include "testing/flat_skyline.h"
 #include "util/errors.h"
 
 namespace horizonreg {
@@ -41,13 +42,8 @@ cv::Mat HazyRidge(std::vector<double>& far, int near_top, bool ridge = true, boo
   return img;
 }
 
-Skyline Extracted(double y) {
-  Skyline s;
-  s.width = kW, s.height = kH;
-  s.y.assign(kW, y);
-  s.confidence.assign(kW, 1.0);
-  return s;
-}
+// The skyline an extractor gives when it stops at row y in every column.
+Skyline Extracted(double y) { return testing::FlatSkyline(kW, kH, y); }
 
 // The extractor stopped at the near range's clear edge, 14-22 rows below the
 // hazy ridge's top; the DEM horizon lies 2 rows below that top (flattened).
