@@ -86,8 +86,8 @@ false.
 """
 import concurrent.futures, json, math, os, statistics, subprocess, sys, tempfile
 
-ALL_MODES = ["plain", "camera", "initial", "traced", "traced-pinhole", "skyline", "registered-skyline", "thin", "wrong", "wrong-camera",
-             "wrong-initial"]
+ALL_MODES = ["plain", "camera", "initial", "traced", "traced-pinhole", "skyline", "registered-skyline", "thin", "wrong",
+             "wrong-camera", "wrong-initial"]
 THIN_SKY_PX = 10  # the thin mode's sky left above the traced horizon's highest point
 # Positions 2-10 km away (bearing deg, distance m) and other regions' DEMs
 # (with a position inside each), for the false-registration probes.

@@ -66,7 +66,8 @@ class SkyFit {
 
 // The first row from `lo` to `hi` (strip indices) whose f rows above are
 // smooth sky and from which the strip departs from their fit and keeps
-// departing down to held_to (a ridge, not a cloud over sky); -1 when none. `fit` holds that row's fit on return.
+// departing down to held_to (a ridge, not a cloud over sky); -1 when none.
+// `fit` holds that row's fit on return.
 int SkyEnd(SkyFit& fit, int lo, int hi, int f, int held_to, int held_max, std::vector<float>& res) {
   res.resize(f);
   for (int i = lo; i <= hi; ++i) {
@@ -150,15 +151,8 @@ Skyline GuideSkyline(const cv::Mat& image, const Skyline& skyline, const std::ve
       }
       return den > 1e-9 ? num / den : 0.0;
     };
-    double y = first[x] + i;
-    for (int j = std::max(1, i - 1); j <= i + 2; ++j) {
-      const double t0 = share(j - 1), t1 = share(j);
-      if (t0 >= 0.5 && t1 < 0.5) {
-        y = first[x] + (j - 0.5) + (t0 - 0.5) / (t0 - t1);
-        break;
-      }
-    }
-    out.y[x] = y;
+    const double crossing = skyline_detail::HalfWayCrossing(std::max(1, i - 1), i + 2, share);
+    out.y[x] = first[x] + (std::isfinite(crossing) ? crossing : i);
     out.confidence[x] = std::clamp(fit.Departure(i + 2) / 20.0, 0.05, 1.0);
     reread[x] = 1;
   }

@@ -31,18 +31,6 @@ constexpr float kDepartSigmas = 4.0f;     // departure from the model and from t
 constexpr float kDepartHeldShare = 0.8f;  // share of the rows down to the boundary that depart
 constexpr int kDepartMinRaise = 3;        // rows
 
-// Where a colour crosses half way from sky to ground between rows r - 1 and
-// r, for r from `from` to `to`: t(r) the colour's share of the way back to
-// the sky (1 sky, 0 ground). NaN when it does not cross there.
-template <typename Share>
-double HalfWayCrossing(int from, int to, const Share& t) {
-  for (int r = from; r <= to; ++r) {
-    const float t0 = t(r - 1), t1 = t(r);
-    if (t0 >= 0.5f && t1 < 0.5f) return (r - 0.5) + (t0 - 0.5) / (t0 - t1);
-  }
-  return NAN;
-}
-
 }  // namespace
 
 void AverageStrips(const cv::Mat& bgr, const std::vector<int>& first, int count, int half, std::vector<uint8_t>& out) {

@@ -58,6 +58,18 @@ struct RefineStrips {
   static constexpr int kNoStrip = std::numeric_limits<int>::min();
 };
 
+// Where a colour crosses half way from sky to ground between rows r - 1 and
+// r, for r from `from` to `to`: t(r) the colour's share of the way back to
+// the sky (1 sky, 0 ground). NaN when it does not cross there.
+template <typename Share>
+double HalfWayCrossing(int from, int to, const Share& t) {
+  for (int r = from; r <= to; ++r) {
+    const float t0 = t(r - 1), t1 = t(r);
+    if (t0 >= 0.5f && t1 < 0.5f) return (r - 0.5) + (t0 - 0.5) / (t0 - t1);
+  }
+  return NAN;
+}
+
 // Per column x with a strip (first[x] != RefineStrips::kNoStrip): `count`
 // rows from first[x] (rows outside the image repeat the edge row) of the
 // column averaged with `half` neighbours on each side (fewer at the image's
