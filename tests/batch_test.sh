@@ -119,4 +119,45 @@ for i, p in enumerate(many):
     assert [float(r["elevation_deg"]) for r in rows if r["id"] == p["id"]] == one["elevation_deg"], p["id"]
 print("horizon --points: 3 profiles equal to the single-point runs (JSON and CSV)")
 PYEOF
+# 6. --skylines: each row carries the photo's skyline, equal to register
+# --skyline-out's (read again near the DEM horizon where registered, as
+# extracted where not); rows without the flag carry none. Real photos.
+REAL=$SHARED/real/columbia
+if [ -d "$REAL" ]; then
+  $PY - "$REAL" "$TMP/real.csv" <<'PYEOF'
+import json, sys
+real, out = sys.argv[1], sys.argv[2]
+rows = ["image,lat,lon,alt_m"]
+for n in ("AK01b_20090827_202939", "CG05_20050811_190000"):  # registers; does not
+    t = json.load(open(f"{real}/{n}.truth.json"))
+    rows.append(f"{real}/{t['image']},{t['lat']!r},{t['lon']!r},{t['alt_m']!r}")
+open(out, "w").write("\n".join(rows) + "\n")
+PYEOF
+  "$BIN" batch "$TMP/real.csv" --dem "$SHARED/dem/dem_Columbia.tif" --skylines -o "$TMP/real.jsonl" --no-progress \
+    2> "$TMP/err" || fail "batch --skylines exited $?: $(cat "$TMP/err")"
+  for n in AK01b_20090827_202939 CG05_20050811_190000; do
+    read -r LAT LON ALT < <($PY -c "import json,sys; t=json.load(open(sys.argv[1])); print(repr(t['lat']), repr(t['lon']), repr(t['alt_m']))" "$REAL/$n.truth.json")
+    "$BIN" register "$REAL/$n.jpg" --dem "$SHARED/dem/dem_Columbia.tif" --lat "$LAT" --lon "$LON" --alt "$ALT" \
+      --skyline-out "$TMP/$n.skyline.json" > "$TMP/$n.reg.json" || fail "register --skyline-out $n"
+    "$BIN" skyline "$REAL/$n.jpg" --json "$TMP/$n.extracted.json" || fail "skyline $n"
+  done
+  $PY - "$TMP" "$REAL" <<'PYEOF' || fail "batch --skylines"
+import json, os, sys
+t, real = sys.argv[1], sys.argv[2]
+rows = {os.path.basename(r["image"])[:-4]: r for r in map(json.loads, open(f"{t}/real.jsonl"))}
+for n, status in (("AK01b_20090827_202939", "registered"), ("CG05_20050811_190000", "no_match")):
+    r = rows[n]
+    assert r["status"] == status, (n, r["status"], r["message"])
+    ref = json.load(open(f"{t}/{n}.skyline.json"))
+    extracted = json.load(open(f"{t}/{n}.extracted.json"))
+    assert r["skyline"] == ref, f"{n}: the row's skyline differs from register --skyline-out's"
+    moved = sum(a != b for a, b in zip(r["skyline"]["y"], extracted["y"]))
+    # Registered: columns read again near the DEM horizon; not registered: the extracted skyline.
+    assert (moved > 0) == (status == "registered"), (n, moved)
+    print(f"batch --skylines {n}: {status}, equal to register --skyline-out, {moved} columns read again")
+assert not any("skyline" in json.loads(l) for l in open(f"{t}/whole.jsonl")), "a row without --skylines has one"
+PYEOF
+else
+  echo "no real photos: --skylines not tested"
+fi
 echo "PASS"

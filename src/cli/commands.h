@@ -82,6 +82,7 @@ struct BatchArgs {
   double max_distance = 100'000.0;
   double step = 0.1;
   bool pinhole = false, no_exif = false, no_progress = false, sea_level_fill = false, refine_position = false;
+  bool skylines = false;  // --skylines
   std::optional<double> position_sigma;
   double max_image_mpx = 250.0, max_dem_mb = 2048.0;
 };
@@ -112,8 +113,6 @@ CameraPoseFile ReadPoseFile(const std::string& path);
 // InvalidArgument naming the file when it is malformed or not for a
 // width x height image.
 Skyline ReadSkylineJson(const std::string& path, int width, int height);
-// The skyline JSON of `s` (DESIGN.md), as `skyline --json` writes it.
-nlohmann::json SkylineJson(const Skyline& s);
 
 struct RenderArgs {
   std::vector<std::string> dem;

@@ -58,6 +58,9 @@ void AddBatchCommand(CLI::App& app, BatchArgs& a) {
   c->add_flag("--refine-position", a.refine_position,
               "Also estimate each photo's latitude, longitude and eye height (as register --refine-position); "
               "rows gain the \"position\" block, the CSV refined_lat, refined_lon, refined_eye_height_m");
+  c->add_flag("--skylines", a.skylines,
+              "Rows also carry \"skyline\" (the skyline JSON; registered photos' read again near the DEM horizon at "
+              "the pose, as register --skyline-out)");
   c->add_option("--position-sigma", a.position_sigma,
                 "How far the positions may be off, metres, 1 sigma (default by each row's source, as register's)")
       ->check(CLI::Range(0.0, 100000.0));
@@ -167,6 +170,7 @@ int RunBatch(const BatchArgs& a) {
     throw InvalidArgument("--position-sigma must be > 0 with --refine-position");
   o.photo.position_sigma_m = a.position_sigma;
   o.refine_position = a.refine_position;
+  o.skylines = a.skylines;
   o.Check();
   if (!a.overlay_dir.empty()) {
     std::error_code ec;

@@ -9,6 +9,7 @@
 #include "cli/guard.h"
 #include "cli/image_io.h"
 #include "cli/output.h"
+#include "pipeline/report.h"
 #include "skyline/skyline.h"
 #include "util/errors.h"
 
@@ -38,21 +39,6 @@ int RunSkyline(const SkylineArgs& a) {
   if (!a.debug.empty()) WriteImage(a.debug, DrawSkylineDebug(image, s));
   WriteOutput(a.json.empty() ? "-" : a.json, j.dump() + "\n");
   return 0;
-}
-
-nlohmann::json SkylineJson(const Skyline& s) {
-  nlohmann::json j;
-  j["width"] = s.width;
-  j["height"] = s.height;
-  nlohmann::json ys = nlohmann::json::array(), cs = nlohmann::json::array();
-  for (int x = 0; x < s.width; ++x) {
-    ys.push_back(Rounded(s.y[x], 2));
-    cs.push_back(Rounded(s.confidence[x], 3));
-  }
-  j["y"] = std::move(ys);
-  j["confidence"] = std::move(cs);
-  j["visible_columns"] = s.VisibleCount();
-  return j;
 }
 
 Skyline ReadSkylineJson(const std::string& path, int width, int height) {

@@ -348,6 +348,7 @@ size_t RunBatch(const std::vector<BatchItem>& items, const BatchOptions& options
         row["image"] = it.image;
         if (!it.station.empty()) row["station"] = it.station;
         if (!warnings.empty()) row["warnings"] = warnings;
+        if (options.skylines) row["skyline"] = SkylineJson(RegisteredSkyline(*site, image, r));
         emit({&it, std::move(row), &image, site.get(), &r});
       } catch (const Error& e) {
         emit({&it, ErrorRow(it, error_message(e, true))});

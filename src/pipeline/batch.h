@@ -79,6 +79,10 @@ struct BatchOptions {
   // source sets (DefaultPositionOptions; photo.position_sigma_m overrides
   // the horizontal sigma): each row then has the "position" block.
   bool refine_position = false;
+  // Each row also carries "skyline" (DESIGN.md's skyline JSON): for a
+  // registered photo read again near the DEM horizon at its pose
+  // (RegisteredSkyline, as register --skyline-out), else the extracted one.
+  bool skylines = false;
   double max_image_pixels = kDefaultMaxImagePixels;  // larger photos are error rows (ReadImage)
   void Check() const;
 };

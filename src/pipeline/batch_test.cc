@@ -182,5 +182,41 @@ TEST_F(BatchTest, RefinesEachPhotosPositionWhenAsked) {
   EXPECT_THROW(o.Check(), InvalidArgument);
 }
 
+// skylines: each row carries the photo's skyline, RegisteredSkyline's at the
+// row's registration (one per column, the image's size); without it, none.
+TEST_F(BatchTest, CarriesEachPhotosSkylineWhenAsked) {
+  if (!fs::exists(kDemoDem)) GTEST_SKIP() << "python-matplotlib-data is not installed";
+  const Site site({kDemoDem}, std::stod(std::to_string(kDemoLat)), std::stod(std::to_string(kDemoLon)), SiteOptions{});
+  // The first of the relief views that registers.
+  cv::Mat image;
+  PhotoRegistration r;
+  for (const CameraPose& pose : ReliefPoses(site, 4)) {
+    const auto k = CameraIntrinsics::FromHfov(480, 320, 45.0);
+    image = RenderView(site.window(), site.observer(), pose, k, RenderOptions{});
+    r = RegisterPhoto(site, image, {});
+    if (r.registration.registered) break;
+  }
+  ASSERT_TRUE(r.registration.registered);
+  cv::imwrite((dir / "v.png").string(), image);
+  Write("m.csv", "image,lat,lon\nv.png," + std::to_string(kDemoLat) + "," + std::to_string(kDemoLon) + "\n");
+  BatchOptions o;
+  o.dem = {kDemoDem};
+  ThreadPool pool(2);
+  nlohmann::json plain, with;
+  RunBatch(ReadManifest((dir / "m.csv").string()), o, pool, [&](const BatchResult& b) { plain = b.row; });
+  o.skylines = true;
+  RunBatch(ReadManifest((dir / "m.csv").string()), o, pool, [&](const BatchResult& b) { with = b.row; });
+  EXPECT_FALSE(plain.contains("skyline"));
+  ASSERT_TRUE(with.contains("skyline")) << with.dump();
+  EXPECT_EQ(with["status"], "registered") << with["message"];
+  EXPECT_EQ(with["skyline"], SkylineJson(RegisteredSkyline(site, image, r)));
+  EXPECT_EQ(with["skyline"]["width"], 480);
+  EXPECT_EQ(with["skyline"]["y"].size(), 480u);
+  EXPECT_GT(with["skyline"]["visible_columns"].get<int>(), 400);
+  with.erase("skyline");
+  with.erase("timing_ms"), plain.erase("timing_ms");
+  EXPECT_EQ(with, plain);  // the rest of the row is unchanged
+}
+
 }  // namespace
 }  // namespace horizonreg

@@ -12,6 +12,21 @@
 
 namespace horizonreg {
 
+nlohmann::json SkylineJson(const Skyline& s) {
+  nlohmann::json j;
+  j["width"] = s.width;
+  j["height"] = s.height;
+  nlohmann::json ys = nlohmann::json::array(), cs = nlohmann::json::array();
+  for (int x = 0; x < s.width; ++x) {
+    ys.push_back(Rounded(s.y[x], 2));
+    cs.push_back(Rounded(s.confidence[x], 3));
+  }
+  j["y"] = std::move(ys);
+  j["confidence"] = std::move(cs);
+  j["visible_columns"] = s.VisibleCount();
+  return j;
+}
+
 nlohmann::json RegistrationReport(const Site& site, const PhotoRegistration& photo, const std::string& position_source,
                                   double total_ms) {
   const Registration& r = photo.registration;

@@ -22,6 +22,11 @@ namespace horizonreg {
 nlohmann::json RegistrationReport(const Site& site, const PhotoRegistration& photo, const std::string& position_source,
                                   double total_ms);
 
+// DESIGN.md's skyline JSON (`skyline`, `register --skyline-out`, batch and
+// Python rows' "skyline"): width, height, y and confidence per column (null
+// where not visible) and visible_columns.
+nlohmann::json SkylineJson(const Skyline& s);
+
 // The overlay of a registered photo at its recovered pose (DEM silhouette,
 // ridges, landmarks from `landmarks_path` or the horizon's summits), or the
 // skyline debug image captioned with the reason when it did not register.

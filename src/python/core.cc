@@ -112,7 +112,7 @@ py::object PyRegister(const py::object& image, const PySite& site, std::optional
                     std::optional<std::pair<double, double>> hfov_range, const py::object& camera,
                     const py::object& sensors, std::optional<std::vector<double>> initial, bool pinhole,
                     std::optional<bool> exif, bool refine_position, std::optional<double> position_sigma,
-                    bool trust_position) {
+                    bool trust_position, bool skyline) {
   const auto t0 = std::chrono::steady_clock::now();
   cv::Mat mat;
   PhotoOptions po;
@@ -151,6 +151,7 @@ py::object PyRegister(const py::object& image, const PySite& site, std::optional
     const PhotoRegistration r = RegisterPhoto(*site.site, mat, po, site.pool.get());
     j = RegistrationReport(*site.site, r, "arguments",
                            std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+    if (skyline) j["skyline"] = SkylineJson(RegisteredSkyline(*site.site, mat, r));
   }
   if (py::isinstance<py::str>(image)) j["image"] = name;
   return ToPy(j);
@@ -159,7 +160,7 @@ py::object PyRegister(const py::object& image, const PySite& site, std::optional
 BatchOptions MakeBatchOptions(const std::vector<std::string>& dem, const std::string& dem_dir, std::optional<double> hfov,
                               std::optional<std::pair<double, double>> hfov_range, bool pinhole, bool exif, double step,
                               double refraction, double max_distance, bool sea_level_fill, bool refine_position,
-                              std::optional<double> position_sigma) {
+                              std::optional<double> position_sigma, bool skylines) {
   BatchOptions o;
   o.dem = dem;
   if (!dem_dir.empty()) {
@@ -175,6 +176,7 @@ BatchOptions MakeBatchOptions(const std::vector<std::string>& dem, const std::st
   o.use_exif = exif;
   o.refine_position = refine_position;
   o.photo.position_sigma_m = position_sigma;
+  o.skylines = skylines;
   o.Check();
   return o;
 }
@@ -284,10 +286,12 @@ PYBIND11_MODULE(_core, m) {
         py::arg("hfov_range") = py::none(), py::arg("camera") = py::none(), py::arg("sensors") = py::none(),
         py::arg("initial") = py::none(), py::arg("pinhole") = false, py::arg("exif") = py::none(),
         py::arg("refine_position") = false, py::arg("position_sigma") = py::none(), py::arg("trust_position") = false,
+        py::arg("skyline") = false,
         "Registers a photo (numpy array or path) taken at `site`: the register JSON as a dict; with "
         "refine_position, also the site's latitude, longitude and eye height (the \"position\" block); "
         "trust_position (a surveyed camera, as register --trust-position) skips the position check and lets "
-        "`initial` decide instead of only vetoing.");
+        "`initial` decide instead of only vetoing; skyline adds \"skyline\" (the skyline JSON, for a registered "
+        "photo read again near the DEM horizon at its pose, as register --skyline-out).");
 
   m.def(
       "draw_overlay",
@@ -333,11 +337,11 @@ PYBIND11_MODULE(_core, m) {
       [](const py::list& rows, const std::string& base_dir, const std::vector<std::string>& dem,
          const std::string& dem_dir, std::optional<double> hfov, std::optional<std::pair<double, double>> hfov_range,
          bool pinhole, bool exif, double step, double refraction, double max_distance, bool sea_level_fill,
-         bool refine_position, std::optional<double> position_sigma, int threads) {
+         bool refine_position, std::optional<double> position_sigma, bool skylines, int threads) {
         const std::vector<BatchItem> items = ManifestFromJson(FromPy(rows), base_dir, "rows");
         const BatchOptions o =
             MakeBatchOptions(dem, dem_dir, hfov, hfov_range, pinhole, exif, step, refraction, max_distance, sea_level_fill,
-                             refine_position, position_sigma);
+                             refine_position, position_sigma, skylines);
         std::vector<std::pair<size_t, nlohmann::json>> out;
         {
           py::gil_scoped_release release;
@@ -357,7 +361,7 @@ PYBIND11_MODULE(_core, m) {
       py::arg("hfov") = py::none(), py::arg("hfov_range") = py::none(), py::arg("pinhole") = false,
       py::arg("exif") = true, py::arg("step") = kRegistrationStepDeg, py::arg("refraction") = kDefaultRefraction,
       py::arg("max_distance") = 100'000.0, py::arg("sea_level_fill") = false, py::arg("refine_position") = false,
-      py::arg("position_sigma") = py::none(), py::arg("threads") = 0,
+      py::arg("position_sigma") = py::none(), py::arg("skylines") = false, py::arg("threads") = 0,
       "Registers manifest rows (dicts with the manifest's columns) as `horizonreg batch` does: one row dict per "
-      "photo, in the rows' order.");
+      "photo, in the rows' order; skylines adds each row's \"skyline\" (as batch --skylines).");
 }

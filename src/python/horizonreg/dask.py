@@ -23,7 +23,7 @@ import sys
 from . import _core
 
 _OPTIONS = ("hfov", "hfov_range", "pinhole", "exif", "step", "refraction", "max_distance", "sea_level_fill",
-            "refine_position", "position_sigma")
+            "refine_position", "position_sigma", "skylines")
 
 
 def _station_key(item):
@@ -57,7 +57,7 @@ def register_archive(manifest, dem=(), dem_dir="", stations="", client=None, sch
     """Registers every photo of `manifest` on a dask cluster: `client` if given, else a Client of
     `scheduler` (an address), else a LocalCluster of n_workers processes. `options` are
     batch_rows's (hfov, hfov_range, pinhole, exif, step, refraction, max_distance,
-    sea_level_fill, refine_position, position_sigma). Returns the rows (dicts) in manifest order."""
+    sea_level_fill, refine_position, position_sigma, skylines). Returns the rows (dicts) in manifest order."""
     unknown = set(options) - set(_OPTIONS)
     if unknown:
         raise ValueError(f"register_archive: unknown option(s) {sorted(unknown)}")
@@ -106,11 +106,13 @@ def main(argv=None):
     p.add_argument("--threads-per-worker", type=int, default=1)
     p.add_argument("--refine-position", action="store_true",
                    help="also estimate each photo's position (as horizonreg batch --refine-position)")
+    p.add_argument("--skylines", action="store_true",
+                   help="rows also carry each photo's skyline (as horizonreg batch --skylines)")
     a = p.parse_args(argv)
     try:
         rows = register_archive(a.manifest, dem=a.dem, dem_dir=a.dem_dir, stations=a.stations, scheduler=a.scheduler,
                                 n_workers=a.workers, threads_per_worker=a.threads_per_worker,
-                                refine_position=a.refine_position)
+                                refine_position=a.refine_position, skylines=a.skylines)
     except (ValueError, OSError) as e:
         print(f"horizonreg.dask: {e}", file=sys.stderr)
         return 2

@@ -130,6 +130,22 @@ def test_refine_position_equals_the_command_line_and_batch(site, views, tmp_path
         horizonreg.register(v["image"], site, refine_position=True, position_sigma=0.0)
 
 
+def test_skyline_equals_register_skyline_out_and_batch(site, views, tmp_path):
+    for v in (views[0], views[3]):  # registers; does not (the extracted skyline)
+        o = v["observer"]
+        out = tmp_path / "s.json"
+        subprocess.run([BIN, "register", v["image"], "--dem", JACKSBORO, "--lat", repr(o["lat"]), "--lon",
+                        repr(o["lon"]), "--skyline-out", str(out)], capture_output=True, text=True, check=True)
+        ref = json.load(open(out))
+        r = horizonreg.register(v["image"], site, skyline=True)
+        assert r["status"] == ("registered" if v["registers"] else "no_match")
+        assert r["skyline"] == ref
+        assert "skyline" not in horizonreg.register(v["image"], site)
+        rows = horizonreg.batch_rows([{"image": v["image"], "lat": o["lat"], "lon": o["lon"]}], dem=[JACKSBORO],
+                                     skylines=True, threads=2)
+        assert rows[0]["skyline"] == ref
+
+
 def test_draw_overlay_returns_a_new_image(site, views):
     img = horizonreg.read_image(views[0]["image"])
     r = horizonreg.register(img, site)
