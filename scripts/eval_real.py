@@ -28,6 +28,11 @@ Modes (each a per-photo table and a summary):
             pose is known, given the wrong position or DEM. The prior keeps
             the search near the pose given, where a wrong horizon's pose can
             fit with no rival (before the fix: 2 false of 91)
+  hfov      (not in the default set) plain with --hfov from the truth: a
+            known opening angle (a webcam's, a manifest's hfov_deg), searched
+            within +-3% (--floors hfov=N, default 12)
+  wrong-hfov, ring-hfov  (not in the default set) the wrong and ring probes
+            with --hfov from the truth (--floors ring-hfov=N)
   wrong-noexif  (not in the default set) the same probes with --no-exif
             (the opening angle unknown, 10-120 deg searched)
   noexif    (not in the default set) plain on the pixels alone: each photo
@@ -188,7 +193,8 @@ def sensors_files(photos, tmpdir):
 # Variants of the probe runs: how each names itself in a table's title, the
 # arguments it adds (variant_args) and the files those read (variant_files).
 VARIANT_TITLES = {"": "", "camera": " with --camera", "initial": " with --initial 2 deg off the truth",
-                  "sensors": " with --sensors 2 deg off the truth", "noexif": " with --no-exif"}
+                  "sensors": " with --sensors 2 deg off the truth", "noexif": " with --no-exif",
+                  "hfov": " with --hfov from the truth"}
 
 
 def variant_files(variant, photos, tmpdir):
@@ -209,6 +215,8 @@ def variant_args(variant, name, t, i, files):
         return [f"--initial={t['yaw_deg'] + daz},{t['pitch_deg'] + dp},{t['roll_deg']},{t['hfov_deg']}"]
     if variant == "sensors":
         return ["--sensors", files[(name, i % len(INITIAL_OFFSETS))]]
+    if variant == "hfov":
+        return ["--hfov", repr(t["hfov_deg"])]
     return ["--no-exif"] if variant == "noexif" else []
 
 
@@ -332,7 +340,7 @@ def main():
     jobs = int(opt("--jobs", "2"))
     floors = {"plain": 12, "camera": 12, "initial": 13, "skyline": 0.9, "thin": 0.9, "skyline-given": 0.95,
               "registered-skyline": 0.9, "registered-skyline-given": 0.95,
-              "thin-given": 0.95, "ring": 0, "ring-camera": 0, "ring-initial": 0, "ring-sensors": 0, "ring-noexif": 0,
+              "thin-given": 0.95, "ring": 0, "ring-camera": 0, "ring-initial": 0, "ring-sensors": 0, "ring-noexif": 0, "ring-hfov": 0, "hfov": 12,
               "sensors": 0, "noexif": 0, "reencode": 0, "gray": 0}
     for kv in (opt("--floors") or "").split(","):
         if "=" in kv:
@@ -372,6 +380,13 @@ def main():
         good, false, maz, mp = pose_table("no prior", rows, 0.5)
         if check and (good < floors["plain"] or false):
             print("FAIL: no-prior registration misses its floor or has a false registration")
+            failed = True
+    if "hfov" in modes:
+        rows = run_all(lambda p: (p[0], p[1], register(binary, shared, p[2], p[0], p[1],
+                                                       variant_args("hfov", p[0], p[1], 0, {}))))
+        good, false, _, _ = pose_table("--hfov from the truth (a known opening angle, +-3% searched)", rows, 0.5)
+        if check and (good < floors["hfov"] or false):
+            print("FAIL: --hfov registration misses its floor or has a false registration")
             failed = True
     if "camera" in modes:
         files = variant_files("camera", photos, tmpdir)
@@ -476,7 +491,7 @@ def main():
         if check and not (w >= floors["thin"] and g >= floors["thin-given"]):  # NaN (no OpenCV) fails too
             print("FAIL: skyline accuracy or coverage under a thin strip of sky misses its floor")
             failed = True
-    for mode in ("wrong", "wrong-camera", "wrong-initial", "wrong-noexif"):
+    for mode in ("wrong", "wrong-camera", "wrong-initial", "wrong-noexif", "wrong-hfov"):
         if mode not in modes:
             continue
         variant = mode.partition("-")[2]
@@ -506,7 +521,8 @@ def main():
         print(f"probes: {len(out)}; registered (false): {len(bad)}; errors: {len(errs)}")
         if check and (bad or errs):
             failed = True
-    for ring_mode in [m for m in ("ring", "ring-camera", "ring-initial", "ring-sensors", "ring-noexif") if m in modes]:
+    for ring_mode in [m for m in ("ring", "ring-camera", "ring-initial", "ring-sensors", "ring-noexif", "ring-hfov")
+                      if m in modes]:
         variant = ring_mode.partition("-")[2]
         files = variant_files(variant, photos, tmpdir)
         probes = [(p, b, dist) + offset_position(p[1]["lat"], p[1]["lon"], b, dist)

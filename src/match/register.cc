@@ -152,6 +152,11 @@ bool ByCost(const Candidate& x, const Candidate& y) {
 // Hypotheses kept after scoring (the refinement draws its distinct
 // candidates from these).
 constexpr size_t kKeptHypotheses = 64;
+// A window of opening angles narrower than this ratio (max / min) refines
+// each candidate from more starts, its focal length this factor longer and
+// shorter (Register, multi_start).
+constexpr double kNarrowHfovWindow = 1.12;
+constexpr double kFocalStartFactor = 1.03;
 // Longest gap in the skyline bridged for finding its peaks and dips, as a
 // share of the width.
 constexpr double kMaxBridgedGap = 0.03;
@@ -532,6 +537,19 @@ Registration Register(const Skyline& skyline, const HorizonProfile& horizon, con
   };
   std::vector<Candidate> refined;
   std::vector<PaperCorrection> corrections;
+  // A narrow window of opening angles (a known --hfov, +-3%; --initial's
+  // +-5%) holds about one distinct hypothesis per solution (the others are
+  // SamePose, within 5% of focal length), refined from that one start; a
+  // wide window's hypotheses of one solution differ in focal length and
+  // start it several times. From one start, AKJNC_20120813 with its true
+  // opening angle ended in a local minimum 0.25 deg and 1.5% of focal
+  // length off (cost 5.35 against 3.62: ambiguous), and a wrong position's
+  // candidates, refined as poorly, let a ring probe of AK01b_20080811
+  // register 164 deg off. So each candidate is also refined from its focal
+  // length 3% longer and shorter, the least cost kept
+  // (RegistrationOptions::narrow_window_restarts).
+  const bool multi_start = !frame.known() && options.narrow_window_restarts &&
+                           options.max_hfov_deg < kNarrowHfovWindow * options.min_hfov_deg;
   auto refine_pool = [&](size_t from, size_t to) {
     std::vector<std::optional<Candidate>> slots(to - from);
     ParallelFor(threads, to - from, [&](size_t k, int) {
@@ -542,12 +560,29 @@ Registration Register(const Skyline& skyline, const HorizonProfile& horizon, con
       lso.rounds = 2;
       lso.anneal = {6.0, 3.0};  // candidates a few pixels off converge; neighbours of one solution merge
       lso.fix_focal = frame.known();
+      auto admitted = [&](const Pose4& q) {
+        if (!WithinPrior(options, q.ToPose())) return false;
+        const double hfov = HfovFromFocalDeg(q.f, width);
+        return frame.known() || (hfov >= options.min_hfov_deg * 0.95 && hfov <= options.max_hfov_deg * 1.05);
+      };
       const Refined r = RefineLeastSquares(scorer, cols, c.pose, lso);
       Candidate rc{r.pose, 0.0};
+      bool kept = admitted(rc.pose);
+      if (multi_start) {
+        double least = kept ? scorer.Cost(rc.pose, quick) : INFINITY;
+        for (const double factor : {kFocalStartFactor, 1.0 / kFocalStartFactor}) {
+          Pose4 start = c.pose;
+          start.f *= factor;
+          std::vector<Column> moved = quick;
+          scorer.Reweight(start, moved);
+          const Refined more = RefineLeastSquares(scorer, moved, start, lso);
+          if (!admitted(more.pose)) continue;
+          if (const double q = scorer.Cost(more.pose, quick); q < least) least = q, rc.pose = more.pose;
+        }
+        kept = std::isfinite(least);
+      }
+      if (!kept) return;
       const CameraPose cp = rc.pose.ToPose();
-      if (!WithinPrior(options, cp)) return;
-      const double hfov = HfovFromFocalDeg(rc.pose.f, width);
-      if (!frame.known() && (hfov < options.min_hfov_deg * 0.95 || hfov > options.max_hfov_deg * 1.05)) return;
       rc.cost = scorer.Cost(rc.pose, all) + 0.02 * PriorPenalty(options.prior, cp);
       rc.inliers = scorer.InlierShare(rc.pose, all);
       rc.misfit = scorer.Misfit(rc.pose, all);

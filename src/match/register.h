@@ -105,6 +105,13 @@ struct RegistrationOptions {
   // the best cost of one skyline over horizons from several places
   // (pipeline/position_check.h).
   bool search_only = false;
+  // In a narrow window of opening angles (max / min < 1.12: a known --hfov,
+  // --initial's +-5%), refine each candidate from its focal length 3% longer
+  // and shorter too (Register): one distinct hypothesis per solution is
+  // refined there, from one start. Off where many places' registrations are
+  // only compared with each other (the position check, locate's places),
+  // which then cost what they did, not three times as much.
+  bool narrow_window_restarts = true;
   void Check() const;  // Throws InvalidArgument naming the field.
   // Whether `informative_columns` (Registration::informative_columns) of a
   // skyline `width` columns wide are enough to tell the pose.
