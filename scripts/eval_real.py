@@ -33,6 +33,10 @@ Modes (each a per-photo table and a summary):
             within +-3% (--floors hfov=N, default 12)
   wrong-hfov, ring-hfov  (not in the default set) the wrong and ring probes
             with --hfov from the truth (--floors ring-hfov=N)
+  wrong-range, ring-range  (not in the default set) the same with
+            --hfov-range 0.8-1.2 times the truth's: a window narrow enough to
+            drop the rivals at other opening angles, wide enough for the focal
+            length to absorb a wrong position's parallax (--floors ring-range=N)
   wrong-noexif  (not in the default set) the same probes with --no-exif
             (the opening angle unknown, 10-120 deg searched)
   noexif    (not in the default set) plain on the pixels alone: each photo
@@ -194,7 +198,8 @@ def sensors_files(photos, tmpdir):
 # arguments it adds (variant_args) and the files those read (variant_files).
 VARIANT_TITLES = {"": "", "camera": " with --camera", "initial": " with --initial 2 deg off the truth",
                   "sensors": " with --sensors 2 deg off the truth", "noexif": " with --no-exif",
-                  "hfov": " with --hfov from the truth"}
+                  "hfov": " with --hfov from the truth",
+                  "range": " with --hfov-range +-20% around the truth"}
 
 
 def variant_files(variant, photos, tmpdir):
@@ -217,6 +222,8 @@ def variant_args(variant, name, t, i, files):
         return ["--sensors", files[(name, i % len(INITIAL_OFFSETS))]]
     if variant == "hfov":
         return ["--hfov", repr(t["hfov_deg"])]
+    if variant == "range":
+        return ["--hfov-range", f"{0.8 * t['hfov_deg']:.2f}:{1.2 * t['hfov_deg']:.2f}"]
     return ["--no-exif"] if variant == "noexif" else []
 
 
@@ -340,7 +347,7 @@ def main():
     jobs = int(opt("--jobs", "2"))
     floors = {"plain": 12, "camera": 12, "initial": 13, "skyline": 0.9, "thin": 0.9, "skyline-given": 0.95,
               "registered-skyline": 0.9, "registered-skyline-given": 0.95,
-              "thin-given": 0.95, "ring": 0, "ring-camera": 0, "ring-initial": 0, "ring-sensors": 0, "ring-noexif": 0, "ring-hfov": 0, "hfov": 12,
+              "thin-given": 0.95, "ring": 0, "ring-camera": 0, "ring-initial": 0, "ring-sensors": 0, "ring-noexif": 0, "ring-hfov": 0, "ring-range": 0, "hfov": 12,
               "sensors": 0, "noexif": 0, "reencode": 0, "gray": 0}
     for kv in (opt("--floors") or "").split(","):
         if "=" in kv:
@@ -491,7 +498,7 @@ def main():
         if check and not (w >= floors["thin"] and g >= floors["thin-given"]):  # NaN (no OpenCV) fails too
             print("FAIL: skyline accuracy or coverage under a thin strip of sky misses its floor")
             failed = True
-    for mode in ("wrong", "wrong-camera", "wrong-initial", "wrong-noexif", "wrong-hfov"):
+    for mode in ("wrong", "wrong-camera", "wrong-initial", "wrong-noexif", "wrong-hfov", "wrong-range"):
         if mode not in modes:
             continue
         variant = mode.partition("-")[2]
@@ -521,7 +528,7 @@ def main():
         print(f"probes: {len(out)}; registered (false): {len(bad)}; errors: {len(errs)}")
         if check and (bad or errs):
             failed = True
-    for ring_mode in [m for m in ("ring", "ring-camera", "ring-initial", "ring-sensors", "ring-noexif", "ring-hfov")
+    for ring_mode in [m for m in ("ring", "ring-camera", "ring-initial", "ring-sensors", "ring-noexif", "ring-hfov", "ring-range")
                       if m in modes]:
         variant = ring_mode.partition("-")[2]
         files = variant_files(variant, photos, tmpdir)
