@@ -188,10 +188,10 @@ TEST_F(BatchTest, CarriesEachPhotosSkylineWhenAsked) {
   if (!fs::exists(kDemoDem)) GTEST_SKIP() << "python-matplotlib-data is not installed";
   const Site site({kDemoDem}, std::stod(std::to_string(kDemoLat)), std::stod(std::to_string(kDemoLon)), SiteOptions{});
   // The first of the relief views that registers.
+  const auto k = CameraIntrinsics::FromHfov(480, 320, 45.0);
   cv::Mat image;
   PhotoRegistration r;
   for (const CameraPose& pose : ReliefPoses(site, 4)) {
-    const auto k = CameraIntrinsics::FromHfov(480, 320, 45.0);
     image = RenderView(site.window(), site.observer(), pose, k, RenderOptions{});
     r = RegisterPhoto(site, image, {});
     if (r.registration.registered) break;
