@@ -37,6 +37,10 @@ Modes (each a per-photo table and a summary):
             --hfov-range 0.8-1.2 times the truth's: a window narrow enough to
             drop the rivals at other opening angles, wide enough for the focal
             length to absorb a wrong position's parallax (--floors ring-range=N)
+  ring-noalt  (not in the default set) the ring without the altitude
+            (--agl 2 instead of --alt): a wrong position given without a
+            height puts the eye on the DEM's ground there, hundreds of metres
+            from the true eye (--floors ring-noalt=N)
   wrong-noexif  (not in the default set) the same probes with --no-exif
             (the opening angle unknown, 10-120 deg searched)
   noexif    (not in the default set) plain on the pixels alone: each photo
@@ -199,7 +203,8 @@ def sensors_files(photos, tmpdir):
 VARIANT_TITLES = {"": "", "camera": " with --camera", "initial": " with --initial 2 deg off the truth",
                   "sensors": " with --sensors 2 deg off the truth", "noexif": " with --no-exif",
                   "hfov": " with --hfov from the truth",
-                  "range": " with --hfov-range +-20% around the truth"}
+                  "range": " with --hfov-range +-20% around the truth",
+                  "noalt": " without the altitude (--agl 2: the eye 2 m above the DEM there)"}
 
 
 def variant_files(variant, photos, tmpdir):
@@ -347,7 +352,7 @@ def main():
     jobs = int(opt("--jobs", "2"))
     floors = {"plain": 12, "camera": 12, "initial": 13, "skyline": 0.9, "thin": 0.9, "skyline-given": 0.95,
               "registered-skyline": 0.9, "registered-skyline-given": 0.95,
-              "thin-given": 0.95, "ring": 0, "ring-camera": 0, "ring-initial": 0, "ring-sensors": 0, "ring-noexif": 0, "ring-hfov": 0, "ring-range": 0, "hfov": 12,
+              "thin-given": 0.95, "ring": 0, "ring-camera": 0, "ring-initial": 0, "ring-sensors": 0, "ring-noexif": 0, "ring-hfov": 0, "ring-range": 0, "ring-noalt": 0, "hfov": 12,
               "sensors": 0, "noexif": 0, "reencode": 0, "gray": 0}
     for kv in (opt("--floors") or "").split(","):
         if "=" in kv:
@@ -528,7 +533,7 @@ def main():
         print(f"probes: {len(out)}; registered (false): {len(bad)}; errors: {len(errs)}")
         if check and (bad or errs):
             failed = True
-    for ring_mode in [m for m in ("ring", "ring-camera", "ring-initial", "ring-sensors", "ring-noexif", "ring-hfov", "ring-range")
+    for ring_mode in [m for m in ("ring", "ring-camera", "ring-initial", "ring-sensors", "ring-noexif", "ring-hfov", "ring-range", "ring-noalt")
                       if m in modes]:
         variant = ring_mode.partition("-")[2]
         files = variant_files(variant, photos, tmpdir)
@@ -537,7 +542,8 @@ def main():
 
         def ring_probe(ix):
             i, ((name, t, d), b, dist, lat, lon) = ix
-            return register(binary, shared, d, name, t, variant_args(variant, name, t, i, files), lat=lat, lon=lon)
+            return register(binary, shared, d, name, t, variant_args(variant, name, t, i, files), lat=lat, lon=lon,
+                            alt=variant != "noalt")
         out = list(pool.map(ring_probe, enumerate(probes)))
         print(f"\n== a ring of wrong positions: 12 bearings at 2, 3 and 5 km ({len(probes)} probes)"
               f"{VARIANT_TITLES[variant]} ==")
