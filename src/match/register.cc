@@ -554,30 +554,30 @@ Registration Register(const Skyline& skyline, const HorizonProfile& horizon, con
     std::vector<std::optional<Candidate>> slots(to - from);
     ParallelFor(threads, to - from, [&](size_t k, int) {
       const Candidate& c = pool[from + k];
-      std::vector<Column> cols = quick;  // weighted for this candidate's pose
-      scorer.Reweight(c.pose, cols);
       LeastSquaresOptions lso;
       lso.rounds = 2;
       lso.anneal = {6.0, 3.0};  // candidates a few pixels off converge; neighbours of one solution merge
       lso.fix_focal = frame.known();
+      auto refined_from = [&](const Pose4& start) {
+        std::vector<Column> cols = quick;  // weighted for this start
+        scorer.Reweight(start, cols);
+        return RefineLeastSquares(scorer, cols, start, lso).pose;
+      };
       auto admitted = [&](const Pose4& q) {
         if (!WithinPrior(options, q.ToPose())) return false;
         const double hfov = HfovFromFocalDeg(q.f, width);
         return frame.known() || (hfov >= options.min_hfov_deg * 0.95 && hfov <= options.max_hfov_deg * 1.05);
       };
-      const Refined r = RefineLeastSquares(scorer, cols, c.pose, lso);
-      Candidate rc{r.pose, 0.0};
+      Candidate rc{refined_from(c.pose), 0.0};
       bool kept = admitted(rc.pose);
       if (multi_start) {
         double least = kept ? scorer.Cost(rc.pose, quick) : INFINITY;
         for (const double factor : {kFocalStartFactor, 1.0 / kFocalStartFactor}) {
           Pose4 start = c.pose;
           start.f *= factor;
-          std::vector<Column> moved = quick;
-          scorer.Reweight(start, moved);
-          const Refined more = RefineLeastSquares(scorer, moved, start, lso);
-          if (!admitted(more.pose)) continue;
-          if (const double q = scorer.Cost(more.pose, quick); q < least) least = q, rc.pose = more.pose;
+          const Pose4 more = refined_from(start);
+          if (!admitted(more)) continue;
+          if (const double q = scorer.Cost(more, quick); q < least) least = q, rc.pose = more;
         }
         kept = std::isfinite(least);
       }
