@@ -5,13 +5,15 @@
 // nearer and farther peaks becomes a near-linear stretch that the opening
 // angle, pitch and roll absorb, with as many inliers as at the truth. Only
 // the cost tells them apart, and it falls towards the true position in a
-// smooth bowl (measured on the real photos: from a wrong position 2-5 km
-// off, the cost at the truth is 12-34% lower; from the truth, every position
-// 1-3 km away fits worse). So the check searches the
-// horizontal position around the given one (a pattern search over exact
-// horizons of the view's sector, the skyline searched again at each place
-// as the photo was) and refuses a registration that fits clearly better
-// somewhere else.
+// bowl (measured on the real photos: from a wrong position 2-5 km off, the
+// cost at the truth is 12-34% lower; from the truth, no position within
+// 4 km fits better). The bowl is about 1 km across on a 100 m DEM, and a
+// wrong position can sit in a shallow one of its own (cost maps of the real
+// photos on a 500 m grid). So the check searches the horizontal position
+// around the given one (a pattern search over exact horizons of the view's
+// sector, the skyline searched again at each place as the photo was; a
+// grid out to 4 km where the given position is no clear bowl bottom) and
+// refuses a registration that fits clearly better somewhere else.
 #pragma once
 
 #include <Eigen/Core>
@@ -45,6 +47,12 @@ struct PositionCheckOptions {
   // The sector computed and searched: the view's opening angle and this
   // much each side (the view turns as the camera moves).
   double view_margin_deg = 15.0;
+  // The wide look: when some place of the first ring fits within this share
+  // of the given position's cost (or better) and nothing was refused, a
+  // hexagonal grid of places this far apart out to this radius (0: none).
+  double wide_trigger = 0.03;
+  double wide_spacing_m = 600.0;
+  double wide_radius_m = 4000.0;
   void Check() const;  // Throws InvalidArgument naming the field.
 };
 
@@ -53,6 +61,7 @@ struct PositionCheck {
   double cost_ratio = 1.0;                        // best place's cost over the given position's
   Eigen::Vector2d best_offset_en_m{0.0, 0.0};     // where the best place is (east, north), metres
   int horizons = 0;                               // horizons computed
+  int wide_places = 0;                            // places of the wide look's grid (0: not needed)
   double ms = 0.0;
   std::string message;  // why it was refused, else empty
   double OffsetM() const { return best_offset_en_m.norm(); }

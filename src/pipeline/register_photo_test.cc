@@ -250,10 +250,11 @@ TEST(PositionCheck, PassesTheTruePositionAndRefusesOneTwoKilometresOff) {
   ASSERT_TRUE(r.position_check.has_value());
   EXPECT_TRUE(r.position_check->consistent);
   EXPECT_GE(r.position_check->cost_ratio, 0.95);
-  // The given place and the first ring of 8; no place there fits better, so
-  // no far ring.
+  // The given place and the first ring of 8; no place there fits better or
+  // nearly as well, so no far ring and no wide look.
   EXPECT_EQ(r.position_check->cost_ratio, 1.0);
   EXPECT_EQ(r.position_check->horizons, 9);
+  EXPECT_EQ(r.position_check->wide_places, 0);
   EXPECT_EQ(RegistrationReport(site, r, "arguments", 1.0)["position_check"]["consistent"], true);
   // Trusted: no check.
   po.check_position.reset();
@@ -280,6 +281,54 @@ TEST(PositionCheck, PassesTheTruePositionAndRefusesOneTwoKilometresOff) {
   PositionCheckOptions bad;
   bad.max_cost_ratio = 1.0;
   EXPECT_THROW(bad.Check(), InvalidArgument);
+  bad = PositionCheckOptions{};
+  bad.wide_spacing_m = 0.0;
+  EXPECT_THROW(bad.Check(), InvalidArgument);
+  bad = PositionCheckOptions{};
+  bad.wide_trigger = 1.5;
+  EXPECT_THROW(bad.Check(), InvalidArgument);
+}
+
+TEST(PositionCheck, TheWideLookReachesABowlThePatternCannot) {
+  // From 2.5 km east of the truth with no far ring and no walk (the pattern
+  // stops after the first ring, as it does where a wrong position sits in
+  // a shallow bowl of its own), and a limit the first ring's best place
+  // (1 km towards the truth) does not pass: the wide look's grid reaches
+  // the truth's bowl and refuses.
+  RenderedRing scene;
+  PhotoOptions po;
+  po.pinhole = true;
+  const PhotoRegistration r = RegisterPhoto(scene.site, scene.photo, po, &scene.pool);
+  ASSERT_TRUE(r.registration.registered) << r.registration.message;
+  const GeodeticPoint east = LocalFrame(scene.site.observer()).GeodeticFromEnu(Eigen::Vector3d(2500.0, 0.0, 0.0));
+  const Site wrong(scene.ring.window, east.lat_deg, east.lon_deg, RingSiteOptions(), &scene.pool);
+  PositionCheckOptions co;
+  co.far_ring_m = 0.0;
+  co.max_horizons = 9;  // the given place and the first ring: no walk
+  co.wide_radius_m = 0.0;
+  const PositionCheck first =
+      CheckPositionConsistency(wrong, wrong.horizon(), r.skyline, r.registration, r.options, co, &scene.pool);
+  EXPECT_EQ(first.wide_places, 0);
+  EXPECT_EQ(first.horizons, 9);
+  EXPECT_NEAR(first.OffsetM(), 1000.0, 1.0);
+  ASSERT_LT(first.cost_ratio, 1.0);
+  co.max_cost_ratio = 0.5 * first.cost_ratio;
+  const PositionCheck narrow =
+      CheckPositionConsistency(wrong, wrong.horizon(), r.skyline, r.registration, r.options, co, &scene.pool);
+  EXPECT_TRUE(narrow.consistent) << narrow.message;
+  co.wide_radius_m = 3500.0;
+  const PositionCheck wide =
+      CheckPositionConsistency(wrong, wrong.horizon(), r.skyline, r.registration, r.options, co, &scene.pool);
+  EXPECT_GT(wide.wide_places, 100);
+  EXPECT_FALSE(wide.consistent);
+  EXPECT_LT(wide.cost_ratio, co.max_cost_ratio);
+  EXPECT_NEAR(wide.OffsetM(), 2500.0, 400.0);
+  EXPECT_NEAR(AngDiffDeg(wide.BearingDeg(), 270.0), 0.0, 10.0);
+  // Never (wide_trigger -1): the first ring's answer.
+  co.wide_trigger = -1.0;
+  EXPECT_EQ(CheckPositionConsistency(wrong, wrong.horizon(), r.skyline, r.registration, r.options, co, &scene.pool)
+                .wide_places,
+            0);
 }
 
 // The cone ring as a flat-coloured photo whose skyline

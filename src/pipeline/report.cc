@@ -160,7 +160,8 @@ nlohmann::json RegistrationReport(const Site& site, const PhotoRegistration& pho
                            {"cost_ratio", Rounded(c.cost_ratio, 3)},
                            {"best_offset_m", Rounded(c.OffsetM(), 0)},
                            {"best_bearing_deg", c.OffsetM() > 0.0 ? Rounded(c.BearingDeg(), 1) : nullptr},
-                           {"horizons", c.horizons}};
+                           {"horizons", c.horizons},
+                           {"wide_places", c.wide_places}};
     j["timing_ms"]["position_check"] = Rounded(c.ms, 1);
   }
   return j;
