@@ -44,6 +44,9 @@ namespace {
 
 // A move must lower the cost by this share to be taken (not rounding noise).
 constexpr double kMinGain = 1e-3;
+// The wide look's grid is fitted this many places at a time (a multiple of
+// the 2 threads), nearest first, until one passes the limit.
+constexpr size_t kWideChunk = 16;
 
 // Outside the computed sector the horizon is held at the sector's edge
 // values: no extrema (no hypotheses) there, and a pose driven outside fits
@@ -261,9 +264,26 @@ PositionCheck CheckPositionConsistency(const Site& site, const HorizonProfile& h
         if (en.norm() > co.first_step_m + 0.5 * s && en.norm() <= co.wide_radius_m && en.norm() <= co.max_offset_m)
           places.push_back({en});
       }
-    out.wide_places = static_cast<int>(places.size());
-    const int budget = visited + out.wide_places + 4 * co.directions;
-    fit_all(places);
+    // Nearest first, a few places at a time, until one passes the limit:
+    // refused then whatever the rest would show (the pattern only goes
+    // lower), and a wrong position is answered sooner.
+    std::stable_sort(places.begin(), places.end(),
+                     [](const Place& a, const Place& b) { return a.en.norm() < b.en.norm(); });
+    const int budget = visited + static_cast<int>(places.size()) + 4 * co.directions;
+    std::vector<Place> grid;
+    for (size_t first = 0; first < places.size();) {
+      std::vector<Place> chunk(places.begin() + first,
+                               places.begin() + std::min(places.size(), first + kWideChunk));
+      first += chunk.size();
+      fit_all(chunk);
+      grid.insert(grid.end(), chunk.begin(), chunk.end());
+      if (std::any_of(chunk.begin(), chunk.end(), [&](const Place& p) {
+            return p.cost < co.max_cost_ratio * given.cost && p.en.norm() >= co.min_offset_m;
+          }))
+        break;
+    }
+    out.wide_places = static_cast<int>(grid.size());
+    places = std::move(grid);
     walk(0.5 * s, 0.5 * s, budget);
   }
   out.cost_ratio = center.cost / given.cost;

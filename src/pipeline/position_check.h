@@ -61,7 +61,7 @@ struct PositionCheck {
   double cost_ratio = 1.0;                        // best place's cost over the given position's
   Eigen::Vector2d best_offset_en_m{0.0, 0.0};     // where the best place is (east, north), metres
   int horizons = 0;                               // horizons computed
-  int wide_places = 0;                            // places of the wide look's grid (0: not needed)
+  int wide_places = 0;                            // places of the wide look's grid fitted (0: not needed)
   double ms = 0.0;
   std::string message;  // why it was refused, else empty
   double OffsetM() const { return best_offset_en_m.norm(); }
