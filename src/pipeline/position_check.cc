@@ -216,7 +216,12 @@ PositionCheck CheckPositionConsistency(const Site& site, const HorizonProfile& h
     fit_all(far);
     places.insert(places.end(), far.begin(), far.end());
   }
-  auto refused = [&] { return center.cost < co.max_cost_ratio * given.cost && center.en.norm() >= co.min_offset_m; };
+  // A place that fits clearly better, far enough away: the registration is
+  // refused once the pattern's centre is one.
+  auto passes = [&](const Place& p) {
+    return p.cost < co.max_cost_ratio * given.cost && p.en.norm() >= co.min_offset_m;
+  };
+  auto refused = [&] { return passes(center); };
   // The pattern: from the best of `places` when it beats the centre, else
   // finer steps around the centre, down to `min_step` (only once the search
   // has moved away from the given position), within `budget` places.
@@ -249,8 +254,8 @@ PositionCheck CheckPositionConsistency(const Site& site, const HorizonProfile& h
   // while the truth fit 17-25% better with nothing between; from the true
   // positions no place within 4 km fits better (the real photos' cost
   // maps), and 14 of 36 true registrations have such a shallow first ring
-  // (0.93-1.03; they pay the grid's time, about 1.1-1.5 s). So a hexagonal grid of places over the disc, and the
-  // pattern again from its best.
+  // (0.93-1.03; they pay the grid's time, about 1.1-1.5 s). So a hexagonal
+  // grid of places over the disc, and the pattern again from its best.
   const bool shallow = std::any_of(fitted.begin(), fitted.end(), [&](const Place& p) {
     return p.en.norm() > 1.0 && p.en.norm() <= co.first_step_m + 1.0 && p.cost < (1.0 + co.wide_trigger) * given.cost;
   });
@@ -277,10 +282,7 @@ PositionCheck CheckPositionConsistency(const Site& site, const HorizonProfile& h
       first += chunk.size();
       fit_all(chunk);
       grid.insert(grid.end(), chunk.begin(), chunk.end());
-      if (std::any_of(chunk.begin(), chunk.end(), [&](const Place& p) {
-            return p.cost < co.max_cost_ratio * given.cost && p.en.norm() >= co.min_offset_m;
-          }))
-        break;
+      if (std::any_of(chunk.begin(), chunk.end(), passes)) break;
     }
     out.wide_places = static_cast<int>(grid.size());
     places = std::move(grid);
