@@ -434,8 +434,18 @@ LocateResult LocateInWindow(const TerrainWindow& window, const cv::Mat& image, c
           p.lat = g.lat_deg, p.lon = g.lon_deg;
           local.push_back(p);
         }
-      run_all(local, [&](const Polished& p) { return register_at(p.lat, p.lon, ro); });
-      out.fine_viewpoints += static_cast<int>(local.size());
+      // The places registered before (the centre, and the previous round's
+      // places this one comes back to) are taken from `seen`.
+      std::vector<Polished> todo;
+      std::vector<int> from_seen(local.size(), -1);
+      for (size_t q = 0; q < local.size(); ++q) {
+        for (size_t t = 0; t < seen.size() && from_seen[q] < 0; ++t)
+          if (DistanceM(local[q].lat, local[q].lon, seen[t].lat, seen[t].lon) < 0.5) from_seen[q] = static_cast<int>(t);
+        if (from_seen[q] < 0) todo.push_back(local[q]);
+      }
+      run_all(todo, [&](const Polished& p) { return register_at(p.lat, p.lon, ro); });
+      for (size_t q = 0, next = 0; q < local.size(); ++q) local[q] = from_seen[q] >= 0 ? seen[from_seen[q]] : todo[next++];
+      out.fine_viewpoints += static_cast<int>(todo.size());
       seen.insert(seen.end(), local.begin(), local.end());
       for (const Polished& p : local)  // registered first, then the least misfit
         if ((p.registered && !at.registered) || (p.registered == at.registered && p.misfit < at.misfit)) at = p;
