@@ -77,10 +77,37 @@ std::pair<double, double> MatchProfile(const Profile& profile, const std::vector
   const double first = window ? around_deg - step_deg * (steps / 2) : 0.0;
   double sxx = 0;
   for (double o : off) sxx += o * o;
+  // Steps of whole bins (the callers' case): each sample's bin and weight
+  // are found once, then moved along by the step's bins (a third of the
+  // coarse stage's time went to finding them again).
+  const double bins_per_step = step_deg / hstep;
+  const int shift = static_cast<int>(std::lround(bins_per_step));
+  const bool whole = shift >= 1 && std::abs(bins_per_step - shift) < 1e-12 && std::abs(bins * hstep - 360.0) < 1e-6;
+  std::vector<int> bin0(whole ? n : 0);
+  std::vector<double> weight(whole ? n : 0);
+  if (whole) {
+    const double az0 = first - 360.0 * std::floor(first / 360.0);
+    for (size_t k = 0; k < n; ++k) {
+      double u = (az0 + off[k]) / hstep;
+      u -= bins * std::floor(u / bins);
+      bin0[k] = static_cast<int>(u) % bins;
+      weight[k] = u - std::floor(u);
+    }
+  }
   for (int s = 0; s < steps; ++s) {
     double az = first + s * step_deg;
     az -= 360.0 * std::floor(az / 360.0);
-    for (size_t k = 0; k < n; ++k) d[k] = at(az + off[k]) - el[k];
+    if (whole) {
+      const int moved = static_cast<int>((static_cast<long>(s) * shift) % bins);
+      for (size_t k = 0; k < n; ++k) {
+        int i0 = bin0[k] + moved;
+        if (i0 >= bins) i0 -= bins;
+        const int i1 = i0 + 1 == bins ? 0 : i0 + 1;
+        d[k] = horizon[i0] * (1 - weight[k]) + horizon[i1] * weight[k] - el[k];
+      }
+    } else {
+      for (size_t k = 0; k < n; ++k) d[k] = at(az + off[k]) - el[k];
+    }
     // Pitch: the median difference; roll: the slope of the near ones; pitch again.
     tmp = d;
     std::nth_element(tmp.begin(), tmp.begin() + n / 2, tmp.end());

@@ -71,6 +71,34 @@ TEST(MatchProfile, FindsTheAzimuthWithPitchAndRollAsOffsets) {
   EXPECT_TRUE(std::isinf(MatchProfile(p, horizon, step, 0.1).first));
 }
 
+TEST(MatchProfile, StepsOfWholeBinsMatchTheGeneralSearch) {
+  // Steps of whole bins take each sample's bin once and move it along; a
+  // step a hair off a whole number of bins takes the general path. The
+  // same azimuths searched (to 1e-6 deg) must give the same answers, over
+  // the whole circle and in a window that wraps through north.
+  const double step = 0.25;
+  std::vector<double> horizon(1440);
+  auto e = [](double az) { return 2.0 * std::sin(DegToRad(3 * az)) + 1.5 * std::cos(DegToRad(7 * az) + 1.0); };
+  for (int i = 0; i < 1440; ++i) horizon[i] = e(i * step);
+  locate_detail::Profile p;
+  for (double off = -20.3; off <= 20.0; off += 0.7) {
+    p.offset_deg.push_back(off);
+    p.elevation_deg.push_back(e(355.1 + off) - 0.8 + 0.03 * off + 0.2 * std::sin(off));
+  }
+  for (const double search_step : {0.25, 0.5, 1.0}) {
+    const double general_step = search_step * (1.0 + 1e-9);
+    const auto [cost, az] = MatchProfile(p, horizon, step, search_step);
+    const auto [g_cost, g_az] = MatchProfile(p, horizon, step, general_step);
+    EXPECT_NEAR(cost, g_cost, 1e-6) << search_step;
+    EXPECT_NEAR(az, g_az, 1e-5) << search_step;
+    const auto [w_cost, w_az] = MatchProfile(p, horizon, step, search_step, 3.3, 12.0);
+    const auto [wg_cost, wg_az] = MatchProfile(p, horizon, step, general_step, 3.3, 12.0);
+    EXPECT_NEAR(w_cost, wg_cost, 1e-6) << search_step;
+    EXPECT_NEAR(w_az, wg_az, 1e-5) << search_step;
+    EXPECT_NEAR(std::remainder(w_az - 355.1, 360.0), 0.0, search_step) << search_step;
+  }
+}
+
 TEST(Coarsen, PoolsBlocksByTheirMeanAndKeepsTheGeoreference) {
   DemGrid g = testing::SynthesizeDem(46.1, 7.9, 1.0 / 1200, 121, 121, [](double lat, double) {
     return lat > 46.05 ? 900.0 : 500.0;
