@@ -31,6 +31,16 @@ constexpr float kDepartSigmas = 4.0f;     // departure from the model and from t
 constexpr float kDepartHeldShare = 0.8f;  // share of the rows down to the boundary that depart
 constexpr int kDepartMinRaise = 3;        // rows
 
+// RaiseDips (at 1024 columns; rows scale with the width).
+constexpr double kDipReach = 6;   // columns on each side whose boundary a column is compared with
+constexpr double kDipRows = 2.5;  // a column this far below both sides' tops is a dip
+constexpr int kDipSkyRows = 6;    // rows of sky fitted by a line, from kDipSkyAbove above the neighbours' top
+constexpr int kDipSkyAbove = 8;
+constexpr float kDipMinDeltaE = 3.0f;  // the least departure from the line that is terrain (JPEG's blocks stay below)
+constexpr float kDipSigmas = 4.0f;
+constexpr float kDipHeldShare = 0.8f;  // share of the rows down to the boundary that depart
+constexpr int kDipPasses = 3;
+
 }  // namespace
 
 void AverageStrips(const cv::Mat& bgr, const std::vector<int>& first, int count, int half, std::vector<uint8_t>& out) {
@@ -357,6 +367,94 @@ double Quantile(std::vector<double>& v, double q) {
   const auto it = v.begin() + std::min(v.size() - 1, static_cast<size_t>(q * v.size()));
   std::nth_element(v.begin(), it, v.end());
   return *it;
+}
+
+namespace {
+
+// Where column x's own ridge starts, from strip row `top` to `bottom`
+// (see RaiseDips): the half-way crossing, NaN if there is none.
+double DipRidge(const cv::Mat& bgr, int x, int top, int bottom, std::vector<uint8_t>& strip, std::vector<float>& l,
+                std::vector<float>& a, std::vector<float>& b) {
+  const int n = bottom - top + 1, fit = kDipSkyRows;
+  if (n < fit + 6) return NAN;
+  strip.resize(3 * static_cast<size_t>(n));
+  for (int i = 0; i < n; ++i) std::copy_n(bgr.ptr<uint8_t>(top + i) + 3 * x, 3, strip.data() + 3 * i);
+  l.resize(n), a.resize(n), b.resize(n);
+  LabConverter::Instance().Convert(strip.data(), 3, n, l.data(), a.data(), b.data());
+  // Least-squares line through the first `fit` rows, per channel, in
+  // t = i - tm (mean 0).
+  const double tm = (fit - 1) / 2.0;
+  double mean[3] = {0, 0, 0}, slope[3] = {0, 0, 0}, stt = 0;
+  for (int i = 0; i < fit; ++i) {
+    const double v[3] = {l[i], a[i], b[i]};
+    stt += (i - tm) * (i - tm);
+    for (int k = 0; k < 3; ++k) mean[k] += v[k] / fit, slope[k] += (i - tm) * v[k];
+  }
+  for (double& s : slope) s /= stt;
+  auto line = [&](int i, int k) { return mean[k] + slope[k] * (i - tm); };
+  auto departure = [&](int i) {
+    const double dl = l[i] - line(i, 0), da = a[i] - line(i, 1), db = b[i] - line(i, 2);
+    return static_cast<float>(std::sqrt(dl * dl + da * da + db * db));
+  };
+  std::vector<float> res(fit);
+  for (int i = 0; i < fit; ++i) res[i] = departure(i);
+  std::nth_element(res.begin(), res.begin() + fit / 2, res.end());
+  const float threshold = std::max(kDipMinDeltaE, kDipSigmas * 1.48f * res[fit / 2]);
+  int found = -1;
+  for (int i = fit; i + 2 < n; ++i)
+    if (departure(i) > threshold && departure(i + 1) > threshold && departure(i + 2) > threshold) {
+      found = i;
+      break;
+    }
+  if (found < 0 || found + 3 >= n) return NAN;
+  int held = 0;
+  for (int i = found; i < n; ++i) held += departure(i) > threshold;
+  if (held < kDipHeldShare * (n - found)) return NAN;
+  float ground[3] = {0, 0, 0};
+  for (int i = found; i < found + 3; ++i) ground[0] += l[i] / 3, ground[1] += a[i] / 3, ground[2] += b[i] / 3;
+  float d[3];
+  for (int k = 0; k < 3; ++k) d[k] = static_cast<float>(line(found - 1, k)) - ground[k];
+  const float dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+  auto t = [&](int i) {
+    return ((l[i] - ground[0]) * d[0] + (a[i] - ground[1]) * d[1] + (b[i] - ground[2]) * d[2]) / dd;
+  };
+  const double c = HalfWayCrossing(found - 1, found + 1, t);
+  return top + (std::isfinite(c) ? c : found - 0.5);
+}
+
+}  // namespace
+
+void RaiseDips(const cv::Mat& bgr, const std::vector<uint8_t>& skip, const std::vector<uint8_t>& raised,
+               std::vector<double>& y, std::vector<double>& alt) {
+  const int h = bgr.rows, w = bgr.cols;
+  if (alt.empty()) alt.assign(w, NAN);
+  const int reach = std::max(3, static_cast<int>(std::lround(kDipReach * w / 1024.0)));
+  const double rows = kDipRows * std::max(1.0, w / 1024.0);
+  std::vector<uint8_t> strip;
+  std::vector<float> l, a, b;
+  for (int pass = 0; pass < kDipPasses; ++pass) {
+    const std::vector<double> y0 = y;
+    int moved = 0;
+    for (int x = reach; x + reach < w; ++x) {
+      if (skip[x] || !std::isfinite(y0[x])) continue;
+      double left = INFINITY, right = INFINITY;
+      for (int k = 1; k <= reach; ++k) {
+        if (std::isfinite(y0[x - k]) && !raised[x - k]) left = std::min(left, y0[x - k]);
+        if (std::isfinite(y0[x + k]) && !raised[x + k]) right = std::min(right, y0[x + k]);
+      }
+      const double top = std::max(left, right);  // the lower of the two sides' tops
+      if (!std::isfinite(top) || y0[x] <= top + rows) continue;
+      const int first = static_cast<int>(std::floor(top)) - kDipSkyAbove,
+                last = static_cast<int>(std::floor(y0[x])) - 2;
+      if (first < 0 || last >= h) continue;
+      const double ny = DipRidge(bgr, x, first, last, strip, l, a, b);
+      if (!std::isfinite(ny) || ny < top - 2.0) continue;
+      if (!std::isfinite(alt[x])) alt[x] = y0[x];
+      y[x] = ny;
+      ++moved;
+    }
+    if (moved == 0) break;
+  }
 }
 
 }  // namespace horizonreg::skyline_detail

@@ -139,6 +139,30 @@ void RaiseToSkyModelDeparture(const cv::Mat& bgr, const SkyModel& model, double 
                               float deep_blue_b, const std::vector<uint8_t>& skip, std::vector<double>& y,
                               std::vector<double>& alt);
 
+// Raises a column that dips below its neighbours to the ridge above it,
+// when its own column shows one: the DP and the refinement took the
+// clearer inner edge (dark rock under a faint snow ridge in haze) where
+// the neighbours found the ridge. Neighbours are read within 6 columns on
+// each side per 1024 (at least 3), the columns flagged in `raised` not
+// among them (the caller flags those RaiseToSkyModelDeparture raised: a
+// sunset's glow raised over a notch would lift the notch). A dip lies more
+// than 2.5 rows (scaled with the width over 1024) below the lower of the
+// two sides' highest boundaries, `top`. From 8 rows above `top`, a straight
+// line through 6 rows of the column's sky; the first row from which 3 in a
+// row depart from the line by more than max(3 delta E, 4 robust sigmas of
+// its residuals) (JPEG's blocks in a smooth sky stay below 3), as do 80% of
+// the rows down to 2 above the boundary, starts the terrain, when it lies
+// no more than 2 rows above `top`. The boundary moves to the half-way
+// crossing from the line's colour to the 3 rows below that row and the
+// one it leaves is kept in `alt` (sized like y, or empty and then sized)
+// unless that holds one already: the clearer edge a coarse DEM sees as
+// well, which the matching reads (Skyline::MatchY), so registration is
+// unchanged. A dip whose column shows no departure keeps its boundary (a
+// notch). Three passes: a dip two or three columns wide closes from its
+// sides. Columns flagged in `skip` and null ones are left alone.
+void RaiseDips(const cv::Mat& bgr, const std::vector<uint8_t>& skip, const std::vector<uint8_t>& raised,
+               std::vector<double>& y, std::vector<double>& alt);
+
 // Hysteresis (as Canny's edges): a column too faint to stand alone (its
 // contrast at least faint_contrast, under the clear columns' threshold)
 // joins the skyline when it continues a kept neighbour without a jump of

@@ -127,6 +127,60 @@ TEST(RaiseToSkyModelDeparture, SkippedColumnsAreLeftAlone) {
   EXPECT_GE(CountAt(y, kTop - 0.5), 0.45 * kW);
 }
 
+// RaiseDips on a scene whose boundary was found on the faint ridge's top
+// (kTop - 0.5) but for `dips`, found on the clearer edge below it
+// (kBoundary); `raised` columns are marked as raised before.
+template <typename Band>
+std::pair<std::vector<double>, std::vector<double>> RaiseDipsIn(Band band, const std::vector<int>& dips,
+                                                                const std::vector<int>& raised = {},
+                                                                std::vector<uint8_t> skip = {}) {
+  const cv::Mat img = Scene(band);
+  std::vector<double> y(kW, kTop - 0.5), alt(kW, NAN);
+  for (int x : dips) y[x] = kBoundary;
+  std::vector<uint8_t> mask(kW, 0);
+  for (int x : raised) mask[x] = 1;
+  if (skip.empty()) skip.assign(kW, 0);
+  RaiseDips(img, skip, mask, y, alt);
+  return {y, alt};
+}
+
+// A far ridge in haze, about 6 delta E off the sky.
+cv::Vec3b FaintRidge(int, int) { return cv::Vec3b(196, 178, 160); }
+
+TEST(RaiseDips, AColumnOnTheInnerEdgeRisesToTheRidgeItsNeighboursFound) {
+  const auto [y, alt] = RaiseDipsIn(FaintRidge, {50, 100, 101, 150});
+  for (int x : {50, 100, 101, 150}) {
+    EXPECT_NEAR(y[x], kTop - 0.5, 1.0) << x;
+    EXPECT_EQ(alt[x], kBoundary) << x << ": the matching still reads the clearer edge";
+  }
+  EXPECT_EQ(CountAt(y, kTop - 0.5), kW);
+  EXPECT_EQ(std::count_if(alt.begin(), alt.end(), [](double v) { return std::isfinite(v); }), 4);
+}
+
+TEST(RaiseDips, ANotchWithSkyDownToItsBoundaryStays) {
+  // Sky straight down to kBoundary in columns 98-103: a notch.
+  const auto [y, alt] = RaiseDipsIn(
+      [](int x, int row) { return x >= 98 && x <= 103 ? cv::Vec3b(185, 150 + row / 12, 118 + row / 12) : FaintRidge(x, row); },
+      {98, 99, 100, 101, 102, 103});
+  for (int x = 98; x <= 103; ++x) {
+    EXPECT_EQ(y[x], kBoundary) << x;
+    EXPECT_TRUE(std::isnan(alt[x])) << x;
+  }
+}
+
+TEST(RaiseDips, RaisedNeighboursSkippedAndNullColumnsDoNotMove) {
+  // The dip at 100 has only raised columns above it within reach (3
+  // columns at this width): no neighbour to rise to.
+  auto [y, alt] = RaiseDipsIn(FaintRidge, {100}, {97, 98, 99});
+  EXPECT_EQ(y[100], kBoundary);
+  EXPECT_TRUE(std::isnan(alt[100]));
+  std::vector<uint8_t> skip(kW, 0);
+  skip[60] = 1;
+  std::tie(y, alt) = RaiseDipsIn(FaintRidge, {60, 140}, {}, skip);
+  EXPECT_EQ(y[60], kBoundary) << "skipped";
+  EXPECT_NEAR(y[140], kTop - 0.5, 1.0);
+}
+
 // A ridge clear (6 delta E) in columns 0-49, faint (2 delta E, under the
 // clear threshold 2.5) in 50-199, an occluder's column at 120, a jump of
 // 10 rows at 150 and no boundary found at 160-169: the faint columns join
