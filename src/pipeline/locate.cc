@@ -62,13 +62,14 @@ std::pair<double, double> MatchProfile(const Profile& profile, const std::vector
   if (n < 4 || n < 0.6 * profile.offset_deg.size() || horizon.empty())
     return {std::numeric_limits<double>::infinity(), 0.0};
   const int bins = static_cast<int>(horizon.size());
-  auto at = [&](double az) {
+  // An azimuth's bin and its share of the way to the next; the horizon there.
+  auto split = [&](double az, int& i0, double& t) {
     double u = az / hstep;
     u -= bins * std::floor(u / bins);
-    const int i0 = static_cast<int>(u) % bins, i1 = (i0 + 1) % bins;
-    const double t = u - std::floor(u);
-    return horizon[i0] * (1 - t) + horizon[i1] * t;
+    i0 = static_cast<int>(u) % bins;
+    t = u - std::floor(u);
   };
+  auto between = [&](int i0, double t) { return horizon[i0] * (1 - t) + horizon[i0 + 1 == bins ? 0 : i0 + 1] * t; };
   std::vector<double> d(n), tmp(n);
   double best = std::numeric_limits<double>::infinity(), best_az = 0.0;
   const bool window = within_deg < 180.0;
@@ -87,12 +88,7 @@ std::pair<double, double> MatchProfile(const Profile& profile, const std::vector
   std::vector<double> weight(whole ? n : 0);
   if (whole) {
     const double az0 = first - 360.0 * std::floor(first / 360.0);
-    for (size_t k = 0; k < n; ++k) {
-      double u = (az0 + off[k]) / hstep;
-      u -= bins * std::floor(u / bins);
-      bin0[k] = static_cast<int>(u) % bins;
-      weight[k] = u - std::floor(u);
-    }
+    for (size_t k = 0; k < n; ++k) split(az0 + off[k], bin0[k], weight[k]);
   }
   for (int s = 0; s < steps; ++s) {
     double az = first + s * step_deg;
@@ -100,13 +96,16 @@ std::pair<double, double> MatchProfile(const Profile& profile, const std::vector
     if (whole) {
       const int moved = static_cast<int>((static_cast<long>(s) * shift) % bins);
       for (size_t k = 0; k < n; ++k) {
-        int i0 = bin0[k] + moved;
-        if (i0 >= bins) i0 -= bins;
-        const int i1 = i0 + 1 == bins ? 0 : i0 + 1;
-        d[k] = horizon[i0] * (1 - weight[k]) + horizon[i1] * weight[k] - el[k];
+        const int i0 = bin0[k] + moved;
+        d[k] = between(i0 >= bins ? i0 - bins : i0, weight[k]) - el[k];
       }
     } else {
-      for (size_t k = 0; k < n; ++k) d[k] = at(az + off[k]) - el[k];
+      for (size_t k = 0; k < n; ++k) {
+        int i0;
+        double t;
+        split(az + off[k], i0, t);
+        d[k] = between(i0, t) - el[k];
+      }
     }
     // Pitch: the median difference; roll: the slope of the near ones; pitch again.
     tmp = d;

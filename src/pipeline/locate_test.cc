@@ -50,11 +50,19 @@ TEST(SkylineProfile, GivesEachSamplesRayElevation) {
   EXPECT_FALSE(std::isnan(p.elevation_deg[50]));
 }
 
+// A synthetic horizon's elevation at an azimuth (deg), and the horizon
+// sampled every `step` deg around the circle.
+double Ridges(double az) { return 2.0 * std::sin(DegToRad(3 * az)) + 1.5 * std::cos(DegToRad(7 * az) + 1.0); }
+std::vector<double> RidgesEvery(double step) {
+  std::vector<double> horizon(static_cast<size_t>(std::lround(360.0 / step)));
+  for (size_t i = 0; i < horizon.size(); ++i) horizon[i] = Ridges(i * step);
+  return horizon;
+}
+
 TEST(MatchProfile, FindsTheAzimuthWithPitchAndRollAsOffsets) {
   const double step = 0.1;
-  std::vector<double> horizon(3600);
-  auto e = [](double az) { return 2.0 * std::sin(DegToRad(3 * az)) + 1.5 * std::cos(DegToRad(7 * az) + 1.0); };
-  for (int i = 0; i < 3600; ++i) horizon[i] = e(i * step);
+  const std::vector<double> horizon = RidgesEvery(step);
+  const auto e = Ridges;
   locate_detail::Profile p;
   for (double off = -15.0; off <= 15.0; off += 0.5) {
     p.offset_deg.push_back(off);
@@ -77,9 +85,8 @@ TEST(MatchProfile, StepsOfWholeBinsMatchTheGeneralSearch) {
   // same azimuths searched (to 1e-6 deg) must give the same answers, over
   // the whole circle and in a window that wraps through north.
   const double step = 0.25;
-  std::vector<double> horizon(1440);
-  auto e = [](double az) { return 2.0 * std::sin(DegToRad(3 * az)) + 1.5 * std::cos(DegToRad(7 * az) + 1.0); };
-  for (int i = 0; i < 1440; ++i) horizon[i] = e(i * step);
+  const std::vector<double> horizon = RidgesEvery(step);
+  const auto e = Ridges;
   locate_detail::Profile p;
   for (double off = -20.3; off <= 20.0; off += 0.7) {
     p.offset_deg.push_back(off);
