@@ -115,11 +115,7 @@ ColumnFit RefineColumn(RefineStrips& strips, int x, int h, int centre, int windo
     f.sky_chroma = std::sqrt(sky[1] * sky[1] + sky[2] * sky[2]);
     f.ground_green = -ground[1];
     if (dd < 1e-6f) return;
-    auto t = [&](int r) {  // 1 sky, 0 ground
-      const int i = r - first;
-      return ((src.l[i] - ground[0]) * d[0] + (src.a[i] - ground[1]) * d[1] + (src.b[i] - ground[2]) * d[2]) / dd;
-    };
-    const double y = HalfWayCrossing(best - 2, best + 2, t);
+    const double y = ColourCrossing(src.l.data(), src.a.data(), src.b.data(), first, sky, ground, best - 2, best + 2);
     f.y = std::isfinite(y) ? y : best;
   };
   read(lab, fit);
@@ -290,14 +286,8 @@ void RaiseToSkyModelDeparture(const cv::Mat& bgr, const SkyModel& model, double 
       float ground[3] = {0, 0, 0};
       for (int j = i + 1; j < g1; ++j) ground[0] += l[j], ground[1] += a[j], ground[2] += b[j];
       for (float& g : ground) g /= static_cast<float>(g1 - i - 1);
-      const float d[3] = {pred[3 * i] - ground[0], pred[3 * i + 1] - ground[1], pred[3 * i + 2] - ground[2]};
-      const float dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-      double ny = i - 0.5;
-      if (dd > 1e-6f) {
-        auto t = [&](int r) { return ((l[r] - ground[0]) * d[0] + (a[r] - ground[1]) * d[1] + (b[r] - ground[2]) * d[2]) / dd; };
-        if (const double c = HalfWayCrossing(i - 2, i + 2, t); std::isfinite(c)) ny = c;
-      }
-      ny += first[x];
+      const double c = ColourCrossing(l, a, b, 0, &pred[3 * i], ground, i - 2, i + 2);
+      const double ny = (std::isfinite(c) ? c : i - 0.5) + first[x];
       if (y[x] - ny >= min_raise) alt[x] = y[x], y[x] = ny;
       break;
     }
@@ -412,13 +402,9 @@ double DipRidge(const cv::Mat& bgr, int x, int top, int bottom, std::vector<uint
   if (held < kDipHeldShare * (n - found)) return NAN;
   float ground[3] = {0, 0, 0};
   for (int i = found; i < found + 3; ++i) ground[0] += l[i] / 3, ground[1] += a[i] / 3, ground[2] += b[i] / 3;
-  float d[3];
-  for (int k = 0; k < 3; ++k) d[k] = static_cast<float>(line(found - 1, k)) - ground[k];
-  const float dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-  auto t = [&](int i) {
-    return ((l[i] - ground[0]) * d[0] + (a[i] - ground[1]) * d[1] + (b[i] - ground[2]) * d[2]) / dd;
-  };
-  const double c = HalfWayCrossing(found - 1, found + 1, t);
+  float sky[3];
+  for (int k = 0; k < 3; ++k) sky[k] = static_cast<float>(line(found - 1, k));
+  const double c = ColourCrossing(l.data(), a.data(), b.data(), 0, sky, ground, found - 1, found + 1);
   return top + (std::isfinite(c) ? c : found - 0.5);
 }
 

@@ -70,6 +70,21 @@ double HalfWayCrossing(int from, int to, const Share& t) {
   return NAN;
 }
 
+// Where the colour of planes l, a, b (row r at index r - first) crosses
+// half way from `sky` to `ground` (CIELAB), between rows from - 1 and to as
+// HalfWayCrossing reads them. NaN when it does not cross there or the two
+// colours are (nearly) the same.
+inline double ColourCrossing(const float* l, const float* a, const float* b, int first, const float* sky,
+                             const float* ground, int from, int to) {
+  const float d[3] = {sky[0] - ground[0], sky[1] - ground[1], sky[2] - ground[2]};
+  const float dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+  if (!(dd > 1e-6f)) return NAN;
+  return HalfWayCrossing(from, to, [&](int r) {  // 1 sky, 0 ground
+    const int i = r - first;
+    return ((l[i] - ground[0]) * d[0] + (a[i] - ground[1]) * d[1] + (b[i] - ground[2]) * d[2]) / dd;
+  });
+}
+
 // Per column x with a strip (first[x] != RefineStrips::kNoStrip): `count`
 // rows from first[x] (rows outside the image repeat the edge row) of the
 // column averaged with `half` neighbours on each side (fewer at the image's
