@@ -410,10 +410,12 @@ double DipRidge(const cv::Mat& bgr, int x, int top, int bottom, std::vector<uint
 
 }  // namespace
 
-void RaiseDips(const cv::Mat& bgr, const std::vector<uint8_t>& skip, const std::vector<uint8_t>& raised,
-               std::vector<double>& y, std::vector<double>& alt) {
+void RaiseDips(const cv::Mat& bgr, const std::vector<uint8_t>& skip, std::vector<double>& y, std::vector<double>& alt) {
   const int h = bgr.rows, w = bgr.cols;
   if (alt.empty()) alt.assign(w, NAN);
+  // The columns raised before (finite alt), not read as neighbours.
+  std::vector<uint8_t> raised(w);
+  for (int x = 0; x < w; ++x) raised[x] = std::isfinite(alt[x]) ? 1 : 0;
   const int reach = std::max(3, static_cast<int>(std::lround(kDipReach * w / 1024.0)));
   const double rows = kDipRows * std::max(1.0, w / 1024.0);
   std::vector<uint8_t> strip;

@@ -158,9 +158,9 @@ void RaiseToSkyModelDeparture(const cv::Mat& bgr, const SkyModel& model, double 
 // when its own column shows one: the DP and the refinement took the
 // clearer inner edge (dark rock under a faint snow ridge in haze) where
 // the neighbours found the ridge. Neighbours are read within 6 columns on
-// each side per 1024 (at least 3), the columns flagged in `raised` not
-// among them (the caller flags those RaiseToSkyModelDeparture raised: a
-// sunset's glow raised over a notch would lift the notch). A dip lies more
+// each side per 1024 (at least 3), the columns raised before (finite in
+// `alt`, as RaiseToSkyModelDeparture leaves it) not among them: a sunset's
+// glow raised over a notch would lift the notch. A dip lies more
 // than 2.5 rows (scaled with the width over 1024) below the lower of the
 // two sides' highest boundaries, `top`. From 8 rows above `top`, a straight
 // line through 6 rows of the column's sky; the first row from which 3 in a
@@ -175,8 +175,7 @@ void RaiseToSkyModelDeparture(const cv::Mat& bgr, const SkyModel& model, double 
 // unchanged. A dip whose column shows no departure keeps its boundary (a
 // notch). Three passes: a dip two or three columns wide closes from its
 // sides. Columns flagged in `skip` and null ones are left alone.
-void RaiseDips(const cv::Mat& bgr, const std::vector<uint8_t>& skip, const std::vector<uint8_t>& raised,
-               std::vector<double>& y, std::vector<double>& alt);
+void RaiseDips(const cv::Mat& bgr, const std::vector<uint8_t>& skip, std::vector<double>& y, std::vector<double>& alt);
 
 // Hysteresis (as Canny's edges): a column too faint to stand alone (its
 // contrast at least faint_contrast, under the clear columns' threshold)

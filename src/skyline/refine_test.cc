@@ -129,7 +129,7 @@ TEST(RaiseToSkyModelDeparture, SkippedColumnsAreLeftAlone) {
 
 // RaiseDips on a scene whose boundary was found on the faint ridge's top
 // (kTop - 0.5) but for `dips`, found on the clearer edge below it
-// (kBoundary); `raised` columns are marked as raised before.
+// (kBoundary); `raised` columns were raised before (their alt set).
 template <typename Band>
 std::pair<std::vector<double>, std::vector<double>> RaiseDipsIn(Band band, const std::vector<int>& dips,
                                                                 const std::vector<int>& raised = {},
@@ -137,10 +137,9 @@ std::pair<std::vector<double>, std::vector<double>> RaiseDipsIn(Band band, const
   const cv::Mat img = Scene(band);
   std::vector<double> y(kW, kTop - 0.5), alt(kW, NAN);
   for (int x : dips) y[x] = kBoundary;
-  std::vector<uint8_t> mask(kW, 0);
-  for (int x : raised) mask[x] = 1;
+  for (int x : raised) alt[x] = kBoundary;
   if (skip.empty()) skip.assign(kW, 0);
-  RaiseDips(img, skip, mask, y, alt);
+  RaiseDips(img, skip, y, alt);
   return {y, alt};
 }
 
@@ -168,7 +167,7 @@ TEST(RaiseDips, ANotchWithSkyDownToItsBoundaryStays) {
   }
 }
 
-TEST(RaiseDips, RaisedNeighboursSkippedAndNullColumnsDoNotMove) {
+TEST(RaiseDips, RaisedNeighboursAndSkippedColumnsDoNotMove) {
   // The dip at 100 has only raised columns above it within reach (3
   // columns at this width): no neighbour to rise to.
   auto [y, alt] = RaiseDipsIn(FaintRidge, {100}, {97, 98, 99});

@@ -800,11 +800,7 @@ Skyline ExtractSkyline(const cv::Mat& image, const SkylineOptions& options) {
   // sunset's glow raised over a notch would lift the notch); those raised
   // to the sky's end count (measured: without them the real photos' gain
   // is lost, 99 columns mended -> 7).
-  {
-    std::vector<uint8_t> raised(image.cols, 0);
-    for (int x = 0; x < image.cols && !out.y_alt.empty(); ++x) raised[x] = std::isfinite(out.y_alt[x]) ? 1 : 0;
-    skyline_detail::RaiseDips(bgr, grown, raised, out.y, out.y_alt);
-  }
+  skyline_detail::RaiseDips(bgr, grown, out.y, out.y_alt);
   if (std::none_of(out.y_alt.begin(), out.y_alt.end(), [](double v) { return std::isfinite(v); })) out.y_alt.clear();
   return out;
 }
