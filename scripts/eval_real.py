@@ -59,6 +59,9 @@ Modes (each a per-photo table and a summary):
             black-and-white archive print or a monochrome webcam, with no
             chroma to tell blue sky from white snow. Counts the photos within
             0.5 deg (--floors gray=N, default 0) and the false ones (0)
+  gray-skyline  (not in the default set; seconds) the skyline of the grey
+            copies against the hand trace, as skyline (--floors
+            gray-skyline=F, a share of the traced columns within 2 px)
   ring      (not in the default set; about 1 minute) register from a ring of
             wrong positions, 12 bearings (every 30 deg) at 2, 3 and 5 km:
             wrong's 5 offsets sample a few bearings, and from a position 2-3 km
@@ -287,14 +290,20 @@ def pose_table(title, rows, tol):
     return len(good), len(false), med("daz"), med("dp")
 
 
-def skyline_table(binary, photos, thin_sky_px=None, shared=None):
+def skyline_table(binary, photos, thin_sky_px=None, shared=None, grey=False):
     """Per photo and in all: the traced columns given a value and within 2 px.
     With thin_sky_px, each photo is first cropped from the top to leave that
     many rows above the traced horizon's highest point (the trace shifted
     with it). With shared (the registered mode), the skyline is the one
     `register --skyline-out` writes, the photo registered with no prior:
-    read again near the DEM horizon where registered."""
-    if shared is not None:
+    read again near the DEM horizon where registered. With grey, the skyline
+    of each photo's grey copy (luma, JPEG quality 95)."""
+    if grey:
+        cv2 = opencv_for("gray-skyline")
+        if cv2 is None:
+            return float("nan"), float("nan")
+        print("\n== skyline of the grey copies against the hand-traced horizon (traced columns only) ==")
+    elif shared is not None:
         print("\n== register --skyline-out against the hand-traced horizon (traced columns only) ==")
     elif thin_sky_px is None:
         print("\n== skyline against the hand-traced horizon (traced columns only) ==")
@@ -317,6 +326,10 @@ def skyline_table(binary, photos, thin_sky_px=None, shared=None):
                 full = cv2.imread(image)
                 image = os.path.join(tmp, "crop.png")
                 cv2.imwrite(image, full[top:])
+            if grey:
+                luma = cv2.imread(image, cv2.IMREAD_GRAYSCALE)
+                image = os.path.join(tmp, "grey.jpg")
+                cv2.imwrite(image, luma, [cv2.IMWRITE_JPEG_QUALITY, 95])
             if shared is not None:
                 r = register(binary, shared, photo_dir, name, t, ["--skyline-out", os.path.join(tmp, "s.json")])
                 if r["status"] == "error":
@@ -353,7 +366,7 @@ def main():
     floors = {"plain": 12, "camera": 12, "initial": 13, "skyline": 0.9, "thin": 0.9, "skyline-given": 0.95,
               "registered-skyline": 0.9, "registered-skyline-given": 0.95,
               "thin-given": 0.95, "ring": 0, "ring-camera": 0, "ring-initial": 0, "ring-sensors": 0, "ring-noexif": 0, "ring-hfov": 0, "ring-range": 0, "ring-noalt": 0, "hfov": 12,
-              "sensors": 0, "noexif": 0, "reencode": 0, "gray": 0}
+              "sensors": 0, "noexif": 0, "reencode": 0, "gray": 0, "gray-skyline": 0.0}
     for kv in (opt("--floors") or "").split(","):
         if "=" in kv:
             k, v = kv.split("=")
@@ -492,6 +505,11 @@ def main():
         w, g = skyline_table(binary, photos, shared=shared)
         if check and (w < floors["registered-skyline"] or g < floors["registered-skyline-given"]):
             print("FAIL: the registered skyline's accuracy or coverage misses its floor")
+            failed = True
+    if "gray-skyline" in modes:
+        w, _ = skyline_table(binary, photos, grey=True)
+        if check and not w >= floors["gray-skyline"]:
+            print("FAIL: the grey copies' skyline accuracy misses its floor")
             failed = True
     if "skyline" in modes:
         w, g = skyline_table(binary, photos)

@@ -42,6 +42,8 @@ constexpr float kSkyModelVeto = 3.0f;         // sky-model deviation (robust sig
 constexpr float kSkyModelClean = 2.0f;        // sky-model deviation (robust sigmas) below which a pixel is clean sky
 constexpr float kSubtleDeltaE = 12.0f;        // ... up to this colour distance (beyond: the histograms decide)
 constexpr double kFogSpreadRows = 2.4;  // median contrast / largest one-row step above which a faint boundary is a fade
+constexpr double kMonochromeSoftFactor = 1.5;  // ... times this in a monochrome image (no sky chroma to tell fog by)
+constexpr float kMonochromeChroma = 2.0f;  // chroma (delta E) that 99% of a monochrome image's pixels stay below
 
 // How surely b* marks saturated blue (sky, never terrain) below the
 // threshold deep_blue_b (DeepBlueB): 0 to 1 over a few units of b*.
@@ -545,9 +547,25 @@ struct Workspace {
   std::vector<uint16_t> row_sums;
   LabPlanes lab, lab_h;  // transposed
   EdgePenalty pen, pen_h;
-  std::vector<float> acc, blue_sample;
+  std::vector<float> acc, sample;
   RefineStrips refine;
 };
+
+// Whether the image carries no colour (a grey or infrared camera, a grey
+// copy): 99% of a sample of its pixels within kMonochromeChroma of neutral.
+bool Monochrome(const LabPlanes& lab, std::vector<float>& chroma) {
+  constexpr int kStride = 4;
+  chroma.clear();
+  for (int c = 0; c < lab.Rows(); c += kStride) {
+    const float* a = lab.a.ptr<float>(c);
+    const float* b = lab.b.ptr<float>(c);
+    for (int r = 0; r < lab.Cols(); r += kStride) chroma.push_back(std::hypot(a[r], b[r]));
+  }
+  if (chroma.empty()) return false;
+  const auto p99 = chroma.begin() + static_cast<std::ptrdiff_t>(0.99 * static_cast<double>(chroma.size() - 1));
+  std::nth_element(chroma.begin(), p99, chroma.end());
+  return *p99 < kMonochromeChroma;
+}
 
 // The b* below which a pixel is saturated blue, sky and never terrain: at
 // dawn, dusk or under a blue white balance the whole frame is blue, the
@@ -659,7 +677,7 @@ Skyline ExtractSkyline(const cv::Mat& image, const SkylineOptions& options) {
 
   const double roll_rad = DegToRad(options.roll_hint_deg.value_or(0.0));
   const double slope = -std::tan(roll_rad);  // positive roll: the skyline rises to the right
-  const float deep_blue_b = DeepBlueB(work_t, ws.blue_sample);
+  const float deep_blue_b = DeepBlueB(work_t, ws.sample);
   BoundarySteps(work_t, deep_blue_b, ws.steps);
   // Pass 1 only gives the first boundary that pass 2 learns the colours of
   // sky and ground from: at half the work size (a quarter of the time).
@@ -779,8 +797,13 @@ Skyline ExtractSkyline(const cv::Mat& image, const SkylineOptions& options) {
   if (!contrasts.empty() && Quantile(chromas, 0.5) < options.fog_max_chroma) {
     const double clearest = Quantile(contrasts, 0.9), median_spread = Quantile(spreads, 0.5);
     // A fade spreads its colour change over more rows than an edge, which
-    // the renderer or the lens smooths over ~2 rows per 1000 columns.
-    const double soft = kFogSpreadRows * std::max(1.0, image.cols / 1024.0);
+    // the renderer or the lens smooths over ~2 rows per 1000 columns. A
+    // monochrome image's sky has no chroma, so that cue tells nothing: its
+    // fade must be clearly soft. Measured: grey copies of the hazy CG05
+    // photos (a sharp ridge, 6-8 delta E, 3.3 rows) lost every column to
+    // this test under the colour threshold; a grey 60-row fade spreads 5.3.
+    const double soft = kFogSpreadRows * std::max(1.0, image.cols / 1024.0) *
+                        (Monochrome(work_t, ws.sample) ? kMonochromeSoftFactor : 1.0);
     if (clearest < options.fog_contrast && median_spread > soft) {
       std::fill(out.y.begin(), out.y.end(), NAN);
       std::fill(out.confidence.begin(), out.confidence.end(), 0.0);

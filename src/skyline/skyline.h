@@ -37,6 +37,7 @@ struct SkylineOptions {
   // below fog_max_chroma), the clearest 10% of the boundary differ by less
   // than fog_contrast (delta E) and the boundary is soft: terrain fading
   // into fog, not a horizon. A faint ridge under a blue sky is haze, kept.
+  // A monochrome image (no chroma to read) needs a clearly softer boundary.
   double fog_contrast = 18.0;
   double fog_max_chroma = 8.0;
   void Check() const;                   // Throws InvalidArgument naming the field.

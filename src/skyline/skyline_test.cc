@@ -188,9 +188,34 @@ TEST(ExtractSkyline, TerrainFadingIntoFogGivesAllNull) {
     }
   }
   EXPECT_EQ(ExtractSkyline(img, SkylineOptions{}).VisibleCount(), 0);
+  cv::Mat grey;
+  cv::cvtColor(img, grey, cv::COLOR_BGR2GRAY);
+  EXPECT_EQ(ExtractSkyline(grey, SkylineOptions{}).VisibleCount(), 0) << "a grey fade is fog too";
   SkylineOptions o;
   o.fog_contrast = -1;
   EXPECT_THROW(o.Check(), InvalidArgument);
+}
+
+// A grey camera's hazy ridge: a faint (about 7 delta E) edge softened over 3
+// rows, with pixel noise. Without chroma it is not taken for fog (as a grey
+// copy of a hazy real photo was: every column nulled), while the 60-row
+// fade above stays null.
+TEST(ExtractSkyline, FaintSoftRidgeInGreyIsNotFog) {
+  const int w = 640, h = 400;
+  cv::Mat img(h, w, CV_8UC1);
+  cv::RNG rng(7);
+  std::vector<double> ridge(w);
+  for (int x = 0; x < w; ++x) ridge[x] = 160.0 + 30.0 * std::sin(x / 90.0) + 10.0 * std::sin(x / 23.0);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      const double t = std::clamp((y + 0.5 - ridge[x]) / 3.0 + 0.5, 0.0, 1.0);  // 0 sky .. 1 ridge, over 3 rows
+      const double v = (1 - t) * 118.0 + t * 100.0 + rng.gaussian(1.5);
+      img.at<uint8_t>(y, x) = cv::saturate_cast<uint8_t>(v);
+    }
+  const Skyline s = ExtractSkyline(img, SkylineOptions{});
+  int good = 0;
+  for (int x = 0; x < w; ++x) good += std::isfinite(s.y[x]) && std::abs(s.y[x] - ridge[x]) <= 1.5;
+  EXPECT_GE(good, w * 80 / 100);
 }
 
 }  // namespace
