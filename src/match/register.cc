@@ -161,11 +161,15 @@ constexpr double kFocalStartFactor = 1.03;
 // share of the width.
 constexpr double kMaxBridgedGap = 0.03;
 
+// Whether a and b look within `tol` (radians) of each other in azimuth and pitch.
+bool YawPitchWithin(const Pose4& a, const Pose4& b, double tol) {
+  return std::abs(std::remainder(a.yaw - b.yaw, 2 * kPi)) < tol && std::abs(a.pitch - b.pitch) < tol;
+}
+
 bool SamePose(const Pose4& a, const Pose4& b, double width) {
   const double hfov = 2.0 * std::atan(0.5 * width / a.f);
   const double tol = std::max(DegToRad(0.5), 0.03 * hfov);
-  return std::abs(std::remainder(a.yaw - b.yaw, 2 * kPi)) < tol && std::abs(a.pitch - b.pitch) < tol &&
-         std::abs(std::log(a.f / b.f)) < 0.05;
+  return YawPitchWithin(a, b, tol) && std::abs(std::log(a.f / b.f)) < 0.05;
 }
 
 // Within a tenth of the opening angle (at least 1 deg) and 15% in focal
@@ -174,8 +178,7 @@ bool SamePose(const Pose4& a, const Pose4& b, double width) {
 // repeating horizon: an ambiguity).
 bool NearPose(const Pose4& a, const Pose4& b, double width) {
   const double tol = std::max(DegToRad(1.0), 0.1 * 2.0 * std::atan(0.5 * width / a.f));
-  return std::abs(std::remainder(a.yaw - b.yaw, 2 * kPi)) < tol && std::abs(a.pitch - b.pitch) < tol &&
-         std::abs(std::log(a.f / b.f)) < 0.15;
+  return YawPitchWithin(a, b, tol) && std::abs(std::log(a.f / b.f)) < 0.15;
 }
 
 // Smallest and largest cosine of the angle between the rays through two
@@ -662,9 +665,7 @@ Registration Register(const Skyline& skyline, const HorizonProfile& horizon, con
     // onto it (polishing every rival, however far, cost 14-18 ms more per
     // registration of the benchmark's dev scenes, on 2 threads; within a
     // quarter of the opening angle none of theirs is polished).
-    const double reach = 0.25 * 2.0 * std::atan(0.5 * width / b.f);
-    if (!(std::abs(std::remainder(rival.pose.yaw - b.yaw, 2 * kPi)) < reach && std::abs(rival.pose.pitch - b.pitch) < reach))
-      break;
+    if (!YawPitchWithin(rival.pose, b, 0.25 * 2.0 * std::atan(0.5 * width / b.f))) break;
     std::vector<Column> cols = all;
     scorer.Reweight(rival.pose, cols);
     LeastSquaresOptions lso;
