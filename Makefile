@@ -43,7 +43,7 @@ TSAN_TESTS = util_thread_pool_test horizon_horizon_test match_match_test pipelin
   pipeline_locate_test
 asan-unit: test-deps
 	cmake -S . -B build-asan $(SAN_FLAGS) -DHORIZONREG_SANITIZE=ON
-	cmake --build build-asan -j $(JOBS)
+	cmake --build build-asan -j $(JOBS) --target unit_tests
 	cd build-asan && UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 ctest --output-on-failure -j $(JOBS) -R '_test$$'
 
 tsan: test-deps
