@@ -312,8 +312,11 @@ def skyline_table(binary, photos, thin_sky_px=None, shared=None, grey=False):
         if cv2 is None:
             return float("nan"), float("nan")
         print(f"\n== skyline with {thin_sky_px} px of sky left above the traced horizon (photos cropped) ==")
-    print(f"{'photo':<24}{'traced':>7}{'given':>7}{'<=2px':>7}{'<=5px':>7}{'median':>8}{'p90':>7}")
-    tot_traced = tot_given = tot_2 = 0
+    # below / above: traced columns given a value more than 2 px under / over
+    # the trace (under: a clearer inner edge taken; over: mostly a faint far
+    # ridge the tracer left out, or cloud).
+    print(f"{'photo':<24}{'traced':>7}{'given':>7}{'<=2px':>7}{'<=5px':>7}{'median':>8}{'p90':>7}{'below':>7}{'above':>7}")
+    tot_traced = tot_given = tot_2 = tot_below = tot_above = 0
     for name, t, photo_dir in photos:
         traced = [(x, y) for x, y in enumerate(t["skyline_row"]) if y is not None]
         if not traced:
@@ -338,7 +341,11 @@ def skyline_table(binary, photos, thin_sky_px=None, shared=None, grey=False):
             else:
                 subprocess.run([binary, "skyline", image, "--json", os.path.join(tmp, "s.json")], check=True)
             s = json.load(open(os.path.join(tmp, "s.json")))
-        d = [abs(s["y"][x] + top - y) for x, y in traced if s["y"][x] is not None]
+        signed = [s["y"][x] + top - y for x, y in traced if s["y"][x] is not None]
+        d = [abs(v) for v in signed]
+        below, above = sum(v > 2 for v in signed), sum(v < -2 for v in signed)
+        tot_below += below
+        tot_above += above
         given = len(d)
         w2 = sum(v <= 2 for v in d)
         w5 = sum(v <= 5 for v in d)
@@ -348,10 +355,13 @@ def skyline_table(binary, photos, thin_sky_px=None, shared=None, grey=False):
         dd = sorted(d)
         print(f"{name:<24}{len(traced):>7}{100 * given / len(traced):>6.1f}%{100 * w2 / len(traced):>6.1f}%"
               f"{100 * w5 / len(traced):>6.1f}%{fmt(statistics.median(dd) if dd else None, '8.2f'):>8}"
-              f"{fmt(dd[int(0.9 * len(dd))] if dd else None, '7.1f'):>7}")
+              f"{fmt(dd[int(0.9 * len(dd))] if dd else None, '7.1f'):>7}"
+              f"{100 * below / len(traced):>6.1f}%{100 * above / len(traced):>6.1f}%")
     w = tot_2 / tot_traced if tot_traced else float("nan")
     g = tot_given / tot_traced if tot_traced else float("nan")
-    print(f"all traced columns: {tot_traced}; within 2 px: {100 * w:.1f}% (of the traced); given a value: {100 * g:.1f}%")
+    print(f"all traced columns: {tot_traced}; within 2 px: {100 * w:.1f}% (of the traced); given a value: {100 * g:.1f}%"
+          + (f"; more than 2 px below: {100 * tot_below / tot_traced:.1f}%, above: {100 * tot_above / tot_traced:.1f}%"
+             if tot_traced else ""))
     return w, g
 
 
