@@ -70,14 +70,12 @@ std::pair<double, double> MatchProfile(const Profile& profile, const std::vector
     t = u - std::floor(u);
   };
   auto between = [&](int i0, double t) { return horizon[i0] * (1 - t) + horizon[i0 + 1 == bins ? 0 : i0 + 1] * t; };
-  std::vector<double> d(n), tmp(n);
+  std::vector<double> tmp(n);
   double best = std::numeric_limits<double>::infinity(), best_az = 0.0;
   const bool window = within_deg < 180.0;
   const int steps = window ? 2 * static_cast<int>(std::ceil(within_deg / step_deg)) + 1
                            : static_cast<int>(std::lround(360.0 / step_deg));
   const double first = window ? around_deg - step_deg * (steps / 2) : 0.0;
-  double sxx = 0;
-  for (double o : off) sxx += o * o;
   // Steps of whole bins (the callers' case): each sample's bin and weight
   // are found once, then moved along by the step's bins (a third of the
   // coarse stage's time went to finding them again).
@@ -90,40 +88,63 @@ std::pair<double, double> MatchProfile(const Profile& profile, const std::vector
     const double az0 = first - 360.0 * std::floor(first / 360.0);
     for (size_t k = 0; k < n; ++k) split(az0 + off[k], bin0[k], weight[k]);
   }
-  for (int s = 0; s < steps; ++s) {
+  // The cost at search step s over every stride-th sample (the same
+  // estimator on fewer samples).
+  std::vector<double> dd(n), oo(n);
+  auto cost_at = [&](int s, size_t stride) {
     double az = first + s * step_deg;
     az -= 360.0 * std::floor(az / 360.0);
-    if (whole) {
-      const int moved = static_cast<int>((static_cast<long>(s) * shift) % bins);
-      for (size_t k = 0; k < n; ++k) {
+    const size_t m = (n + stride - 1) / stride;
+    for (size_t j = 0, k = 0; k < n; ++j, k += stride) {
+      if (whole) {
+        const int moved = static_cast<int>((static_cast<long>(s) * shift) % bins);
         const int i0 = bin0[k] + moved;
-        d[k] = between(i0 >= bins ? i0 - bins : i0, weight[k]) - el[k];
-      }
-    } else {
-      for (size_t k = 0; k < n; ++k) {
+        dd[j] = between(i0 >= bins ? i0 - bins : i0, weight[k]) - el[k];
+      } else {
         int i0;
         double t;
         split(az + off[k], i0, t);
-        d[k] = between(i0, t) - el[k];
+        dd[j] = between(i0, t) - el[k];
       }
+      oo[j] = off[k];
     }
     // Pitch: the median difference; roll: the slope of the near ones; pitch again.
-    tmp = d;
-    std::nth_element(tmp.begin(), tmp.begin() + n / 2, tmp.end());
-    double p = tmp[n / 2], q = 0.0;
-    double sxy = 0, sx2 = 0;
-    for (size_t k = 0; k < n; ++k)
-      if (std::abs(d[k] - p) < 2.0) sxy += off[k] * (d[k] - p), sx2 += off[k] * off[k];
-    if (sx2 > 0.05 * sxx) q = std::clamp(sxy / sx2, -kMaxSlope, kMaxSlope);
-    for (size_t k = 0; k < n; ++k) tmp[k] = d[k] - q * off[k];
-    std::nth_element(tmp.begin(), tmp.begin() + n / 2, tmp.end());
-    p = tmp[n / 2];
+    std::copy(dd.begin(), dd.begin() + m, tmp.begin());
+    std::nth_element(tmp.begin(), tmp.begin() + m / 2, tmp.begin() + m);
+    double p = tmp[m / 2], q = 0.0;
+    double sxy = 0, sx2 = 0, sxx_m = 0;
+    for (size_t j = 0; j < m; ++j) {
+      sxx_m += oo[j] * oo[j];
+      if (std::abs(dd[j] - p) < 2.0) sxy += oo[j] * (dd[j] - p), sx2 += oo[j] * oo[j];
+    }
+    if (sx2 > 0.05 * sxx_m) q = std::clamp(sxy / sx2, -kMaxSlope, kMaxSlope);
+    for (size_t j = 0; j < m; ++j) tmp[j] = dd[j] - q * oo[j];
+    std::nth_element(tmp.begin(), tmp.begin() + m / 2, tmp.begin() + m);
+    p = tmp[m / 2];
     double cost = 0;
-    for (size_t k = 0; k < n; ++k) {
-      const double r = d[k] - q * off[k] - p;
+    for (size_t j = 0; j < m; ++j) {
+      const double r = dd[j] - q * oo[j] - p;
       cost += std::min(r * r, kTruncDeg2);
     }
-    cost /= n;
+    return std::pair{cost / m, az};
+  };
+  // A long search is screened first on every 4th sample; the full cost is
+  // taken at the best eighth of the steps (at least 8). A third of the
+  // time; the best step is among them wherever the profile's own fit stands
+  // out (the shortlist holds its neighbours too).
+  std::vector<int> shortlist;
+  if (steps >= 64 && n >= 32) {
+    std::vector<std::pair<double, int>> screened(steps);
+    for (int s = 0; s < steps; ++s) screened[s] = {cost_at(s, 4).first, s};
+    const size_t keep = std::max<size_t>(8, steps / 8);
+    std::nth_element(screened.begin(), screened.begin() + keep, screened.end());
+    for (size_t i = 0; i < keep; ++i) shortlist.push_back(screened[i].second);
+    std::sort(shortlist.begin(), shortlist.end());  // in step order: ties go to the first, as in a full search
+  } else {
+    for (int s = 0; s < steps; ++s) shortlist.push_back(s);
+  }
+  for (const int s : shortlist) {
+    const auto [cost, az] = cost_at(s, 1);
     if (cost < best) best = cost, best_az = az;
   }
   return {best, best_az};

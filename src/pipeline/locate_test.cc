@@ -106,6 +106,33 @@ TEST(MatchProfile, StepsOfWholeBinsMatchTheGeneralSearch) {
   }
 }
 
+TEST(MatchProfile, TheScreenedSearchFindsTheExhaustiveBest) {
+  // A long search screens the steps on every 4th sample and fully costs
+  // the best eighth. Its answer must be the least full cost over every
+  // step, taken here one step at a time (a window of one step is costed in
+  // full), for a profile that fits nowhere exactly (noise, a misread run).
+  const double step = 1.0;
+  const std::vector<double> horizon = RidgesEvery(step);
+  locate_detail::Profile p;
+  unsigned seed = 12345;
+  for (double off = -30.0; off <= 30.0; off += 1.0) {
+    seed = seed * 1103515245u + 12345u;
+    const double noise = 0.3 * ((seed >> 8) % 1000 / 1000.0 - 0.5);
+    const double misread = std::abs(off - 12.0) < 4.0 ? 1.5 : 0.0;
+    p.offset_deg.push_back(off);
+    p.elevation_deg.push_back(Ridges(211.0 + off) - 0.7 + 0.02 * off + noise + misread);
+  }
+  const auto [cost, az] = MatchProfile(p, horizon, step, step);
+  double best = INFINITY, best_az = NAN;
+  for (int s = 0; s < 360; ++s) {
+    const auto [c, a] = MatchProfile(p, horizon, step, step, s, 0.0);
+    if (c < best) best = c, best_az = a;
+  }
+  EXPECT_DOUBLE_EQ(cost, best);
+  EXPECT_DOUBLE_EQ(az, best_az);
+  EXPECT_NEAR(az, 211.0, 1e-9);
+}
+
 TEST(Coarsen, PoolsBlocksByTheirMeanAndKeepsTheGeoreference) {
   DemGrid g = testing::SynthesizeDem(46.1, 7.9, 1.0 / 1200, 121, 121, [](double lat, double) {
     return lat > 46.05 ? 900.0 : 500.0;
