@@ -89,41 +89,49 @@ std::pair<double, double> MatchProfile(const Profile& profile, const std::vector
     for (size_t k = 0; k < n; ++k) split(az0 + off[k], bin0[k], weight[k]);
   }
   // The cost at search step s over every stride-th sample (the same
-  // estimator on fewer samples).
-  std::vector<double> dd(n), oo(n);
+  // estimator on fewer samples): 1 or kScreenStride.
+  constexpr size_t kScreenStride = 4;
+  std::vector<double> off_screen;
+  for (size_t k = 0; k < n; k += kScreenStride) off_screen.push_back(off[k]);
+  auto sum_sq = [](const std::vector<double>& v) {
+    double sum = 0;
+    for (double o : v) sum += o * o;
+    return sum;
+  };
+  const double sxx_all = sum_sq(off), sxx_screen = sum_sq(off_screen);
+  std::vector<double> d(n);
   auto cost_at = [&](int s, size_t stride) {
     double az = first + s * step_deg;
     az -= 360.0 * std::floor(az / 360.0);
-    const size_t m = (n + stride - 1) / stride;
-    for (size_t j = 0, k = 0; k < n; ++j, k += stride) {
+    const std::vector<double>& o = stride == 1 ? off : off_screen;
+    const double sxx = stride == 1 ? sxx_all : sxx_screen;
+    const size_t m = o.size();
+    const int moved = whole ? static_cast<int>((static_cast<long>(s) * shift) % bins) : 0;
+    for (size_t j = 0, k = 0; j < m; ++j, k += stride) {
       if (whole) {
-        const int moved = static_cast<int>((static_cast<long>(s) * shift) % bins);
         const int i0 = bin0[k] + moved;
-        dd[j] = between(i0 >= bins ? i0 - bins : i0, weight[k]) - el[k];
+        d[j] = between(i0 >= bins ? i0 - bins : i0, weight[k]) - el[k];
       } else {
         int i0;
         double t;
         split(az + off[k], i0, t);
-        dd[j] = between(i0, t) - el[k];
+        d[j] = between(i0, t) - el[k];
       }
-      oo[j] = off[k];
     }
     // Pitch: the median difference; roll: the slope of the near ones; pitch again.
-    std::copy(dd.begin(), dd.begin() + m, tmp.begin());
+    std::copy(d.begin(), d.begin() + m, tmp.begin());
     std::nth_element(tmp.begin(), tmp.begin() + m / 2, tmp.begin() + m);
     double p = tmp[m / 2], q = 0.0;
-    double sxy = 0, sx2 = 0, sxx_m = 0;
-    for (size_t j = 0; j < m; ++j) {
-      sxx_m += oo[j] * oo[j];
-      if (std::abs(dd[j] - p) < 2.0) sxy += oo[j] * (dd[j] - p), sx2 += oo[j] * oo[j];
-    }
-    if (sx2 > 0.05 * sxx_m) q = std::clamp(sxy / sx2, -kMaxSlope, kMaxSlope);
-    for (size_t j = 0; j < m; ++j) tmp[j] = dd[j] - q * oo[j];
+    double sxy = 0, sx2 = 0;
+    for (size_t j = 0; j < m; ++j)
+      if (std::abs(d[j] - p) < 2.0) sxy += o[j] * (d[j] - p), sx2 += o[j] * o[j];
+    if (sx2 > 0.05 * sxx) q = std::clamp(sxy / sx2, -kMaxSlope, kMaxSlope);
+    for (size_t j = 0; j < m; ++j) tmp[j] = d[j] - q * o[j];
     std::nth_element(tmp.begin(), tmp.begin() + m / 2, tmp.begin() + m);
     p = tmp[m / 2];
     double cost = 0;
     for (size_t j = 0; j < m; ++j) {
-      const double r = dd[j] - q * oo[j] - p;
+      const double r = d[j] - q * o[j] - p;
       cost += std::min(r * r, kTruncDeg2);
     }
     return std::pair{cost / m, az};
@@ -135,7 +143,7 @@ std::pair<double, double> MatchProfile(const Profile& profile, const std::vector
   std::vector<int> shortlist;
   if (steps >= 64 && n >= 32) {
     std::vector<std::pair<double, int>> screened(steps);
-    for (int s = 0; s < steps; ++s) screened[s] = {cost_at(s, 4).first, s};
+    for (int s = 0; s < steps; ++s) screened[s] = {cost_at(s, kScreenStride).first, s};
     const size_t keep = std::max<size_t>(8, steps / 8);
     std::nth_element(screened.begin(), screened.begin() + keep, screened.end());
     for (size_t i = 0; i < keep; ++i) shortlist.push_back(screened[i].second);
