@@ -2,9 +2,8 @@
 #include "dem/dem_grid.h"
 
 #include <algorithm>
+#include <cmath>
 #include <limits>
-
-#include <algorithm>
 
 #include "geo/geodesy.h"
 #include "util/angles.h"
@@ -66,7 +65,20 @@ std::optional<double> DemGrid::HeightAtPixel(double col, double row) const {
   return h;
 }
 
+void DemGrid::IndexTrig() {
+  post_trig.clear();
+  const size_t n = static_cast<size_t>(width) * height;
+  if (separable || lat_deg.size() != n || lon_deg.size() != n) return;
+  post_trig.resize(4 * n);
+  for (size_t k = 0; k < n; ++k) {
+    const double lat = DegToRad(lat_deg[k]), lon = DegToRad(lon_deg[k]);
+    post_trig[4 * k] = std::sin(lat), post_trig[4 * k + 1] = std::cos(lat);
+    post_trig[4 * k + 2] = std::sin(lon), post_trig[4 * k + 3] = std::cos(lon);
+  }
+}
+
 void DemGrid::IndexPositions() {
+  post_trig.clear();
   if (separable || width < 2 || height < 2) return;
   // (lon, lat) offsets of the posts (w-1, 0) and (0, h-1) from post (0, 0).
   const double a = AngDiffDeg(LonAt(width - 1, 0), LonAt(0, 0)), b = LatAt(width - 1, 0) - LatAt(0, 0);

@@ -33,6 +33,15 @@ struct DemGrid {
   // by IndexPositions() and refined by Newton iterations in PixelOf.
   double col_from_lonlat[3] = {0, 0, 0}, row_from_lonlat[3] = {0, 0, 0};
   void IndexPositions();
+  // Non-separable grids: sin and cos of each post's latitude and longitude
+  // (4 per post, row-major; 32 bytes a post), set by IndexTrig(): a horizon
+  // sweep then takes the sines and cosines of (longitude - observer's
+  // longitude) from them by the difference formulae, instead of two sincos
+  // per post and place. Worth it for many places over one grid (the
+  // position check's wide look: 144); empty otherwise (building it costs
+  // about a horizon). Cleared by IndexPositions().
+  std::vector<double> post_trig;
+  void IndexTrig();
   // Horizon sweeps go over blocks of kBlock rows by kBlock columns, split
   // into quarters down to kBlock / 4. The highest post of each block of size
   // S in {kBlock, kBlock / 2, kBlock / 4} at (rb, cb), over rows

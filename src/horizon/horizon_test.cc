@@ -207,6 +207,48 @@ TEST(ComputeHorizon, SectorGivesTheSameBinsInsideAndNaNOutside) {
   EXPECT_THROW(bad.Check(), InvalidArgument);
 }
 
+// A projected grid's posts carry their own sines and cosines
+// (DemGrid::post_trig, from IndexTrig): the sweep takes the longitude
+// differences' from them by the difference formulae. The horizon must be
+// the one computed from the posts' degrees.
+TEST(ComputeHorizon, APostsCachedTrigonometryGivesTheSameHorizon) {
+  DemGrid g = SynthesizeDem(45.3, 6.7, 0.002, 301, 301, ConeHeight(45.1, 7.1, 200.0, 1500.0, 9000.0));
+  g.separable = false;
+  g.lat_deg.resize(g.height_m.size()), g.lon_deg.resize(g.height_m.size());
+  for (int r = 0; r < g.height; ++r)
+    for (int c = 0; c < g.width; ++c) {
+      // A slight shear, as a projected grid has: not separable.
+      const size_t k = static_cast<size_t>(r) * g.width + c;
+      g.lat_deg[k] = g.lat0_deg + r * g.dlat_deg + 1e-6 * c;
+      g.lon_deg[k] = g.lon0_deg + c * g.dlon_deg - 2e-6 * r;
+    }
+  g.IndexPositions();
+  g.IndexTrig();
+  ASSERT_EQ(g.post_trig.size(), 4 * g.height_m.size());
+  DemGrid plain = g;
+  plain.post_trig.clear();
+  const TerrainWindow cached = WindowOf(std::move(g)), uncached = WindowOf(std::move(plain));
+  HorizonOptions o;
+  o.num_threads = 1;
+  for (const GeodeticPoint& eye : {GeodeticPoint{45.0, 7.0, 210.0}, GeodeticPoint{45.12, 7.05, 900.0}}) {
+    const HorizonProfile a = ComputeHorizon(cached, eye, o), b = ComputeHorizon(uncached, eye, o);
+    ASSERT_EQ(a.size(), b.size());
+    int finite = 0;
+    for (int i = 0; i < a.size(); ++i) {
+      ASSERT_EQ(std::isfinite(a.elevation_deg[i]), std::isfinite(b.elevation_deg[i])) << "bin " << i;
+      if (!std::isfinite(a.elevation_deg[i])) continue;
+      ++finite;
+      EXPECT_NEAR(a.elevation_deg[i], b.elevation_deg[i], 1e-9) << "bin " << i;
+      // The distance to within 0.5 m: where the horizon's point is one of a
+      // nearly level run, rounding at 1e-16 may pick a neighbouring one.
+      if (std::isfinite(a.distance_m[i])) {
+        EXPECT_NEAR(a.distance_m[i], b.distance_m[i], 0.5) << "bin " << i;
+      }
+    }
+    EXPECT_GT(finite, a.size() / 2);
+  }
+}
+
 TEST(ComputeRidges, FindsANearRidgeInFrontOfAHigherFarOne) {
   // Looking north: a 400 m ridge at 5 km, a 4500 m massif at 40 km.
   auto near_ridge = ConeHeight(45.045, 7.0, 0.0, 400.0, 1500.0);

@@ -155,6 +155,10 @@ void SweepRows(const DemGrid& grid, const LocalFrame& frame, const SweepSetup& s
   const double min_d2 = setup.min_distance_m * setup.min_distance_m;
   const double max_d2 = setup.max_distance_m * setup.max_distance_m;
 
+  // Non-separable grids: the posts' own sines and cosines when indexed.
+  const bool cached_trig =
+      !grid.separable && grid.post_trig.size() == 4 * static_cast<size_t>(w) * static_cast<size_t>(grid.height);
+  const double sin_lon0 = std::sin(DegToRad(o.lon_deg)), cos_lon0 = std::cos(DegToRad(o.lon_deg));
   RowScratch scratch(w);
   // Places the posts of row r, columns [c_begin, c_end) (every col_stride-th).
   auto compute_row = [&](int r, std::vector<SweepPoint>& row, int col_stride = 1, int c_begin = 0, int c_end = -1) {
@@ -170,11 +174,20 @@ void SweepRows(const DemGrid& grid, const LocalFrame& frame, const SweepSetup& s
       in.row_sin_lat = row_s[r], in.row_cos_lat = row_c[r], in.row_n = row_nr[r];
       in.col_sin_dlon = col_s + c_begin, in.col_cos_dlon = col_c + c_begin;
     } else {
-      for (int c = c_begin; c < c_end; c += col_stride) {  // ComputeRow reads every col_stride-th
-        const size_t k = static_cast<size_t>(r) * w + c;
-        const double lat = DegToRad(grid.lat_deg[k]), dl = DegToRad(grid.lon_deg[k] - o.lon_deg);
-        scratch.sin_lat[c - c_begin] = std::sin(lat), scratch.cos_lat[c - c_begin] = std::cos(lat);
-        scratch.sin_dlon[c - c_begin] = std::sin(dl), scratch.cos_dlon[c - c_begin] = std::cos(dl);
+      if (cached_trig) {
+        for (int c = c_begin; c < c_end; c += col_stride) {  // ComputeRow reads every col_stride-th
+          const double* t = grid.post_trig.data() + 4 * (static_cast<size_t>(r) * w + c);
+          scratch.sin_lat[c - c_begin] = t[0], scratch.cos_lat[c - c_begin] = t[1];
+          scratch.sin_dlon[c - c_begin] = t[2] * cos_lon0 - t[3] * sin_lon0;
+          scratch.cos_dlon[c - c_begin] = t[3] * cos_lon0 + t[2] * sin_lon0;
+        }
+      } else {
+        for (int c = c_begin; c < c_end; c += col_stride) {
+          const size_t k = static_cast<size_t>(r) * w + c;
+          const double lat = DegToRad(grid.lat_deg[k]), dl = DegToRad(grid.lon_deg[k] - o.lon_deg);
+          scratch.sin_lat[c - c_begin] = std::sin(lat), scratch.cos_lat[c - c_begin] = std::cos(lat);
+          scratch.sin_dlon[c - c_begin] = std::sin(dl), scratch.cos_dlon[c - c_begin] = std::cos(dl);
+        }
       }
       in.post_sin_lat = scratch.sin_lat.data(), in.post_cos_lat = scratch.cos_lat.data();
       in.col_sin_dlon = scratch.sin_dlon.data(), in.col_cos_dlon = scratch.cos_dlon.data();

@@ -78,6 +78,27 @@ void HoldSectorEdges(HorizonProfile& h) {
   }
 }
 
+// A copy of `window` whose projected (non-separable) grids carry their
+// posts' sines and cosines (DemGrid::IndexTrig) for the wide look's many
+// sweeps; nullopt when it has none, or too many posts to copy (more than
+// kMaxIndexedPosts: about 50 bytes a post while the grid is fitted). On the
+// real photos' 100 m projected DEM (377 000 posts) the copy and its
+// trigonometry take about 15 ms, the 144 places' horizons 60-90 ms less.
+std::optional<TerrainWindow> WithPostTrig(const TerrainWindow& window) {
+  constexpr size_t kMaxIndexedPosts = size_t{2} << 20;
+  size_t posts = 0;
+  bool projected = false;
+  for (const DemGrid& g : window.grids) {
+    posts += g.height_m.size();
+    projected = projected || (!g.separable && g.post_trig.empty());
+  }
+  if (!projected || posts > kMaxIndexedPosts) return std::nullopt;
+  TerrainWindow out = window;
+  for (DemGrid& g : out.grids)
+    if (!g.separable && g.post_trig.empty()) g.IndexTrig();
+  return out;
+}
+
 }  // namespace
 
 PositionCheck CheckPositionConsistency(const Site& site, const HorizonProfile& horizon, const Skyline& skyline,
@@ -137,6 +158,9 @@ PositionCheck CheckPositionConsistency(const Site& site, const HorizonProfile& h
     Eigen::Vector2d en{0.0, 0.0};
     double cost = INFINITY;
   };
+  // The DEM the places' horizons sweep (the wide look's indexed copy).
+  const TerrainWindow* sweep_window = &site.window();
+  std::optional<TerrainWindow> indexed;
   // The horizon at a place: the sector of the given one (the same bins,
   // within the reach) or computed.
   auto horizon_at = [&](const Eigen::Vector2d& en) -> std::optional<HorizonProfile> {
@@ -149,10 +173,10 @@ PositionCheck CheckPositionConsistency(const Site& site, const HorizonProfile& h
       return h;
     }
     GeodeticPoint g = frame.GeodeticFromEnu(Eigen::Vector3d(en.x(), en.y(), 0.0));
-    const std::optional<double> ground = site.window().HeightAt(g.lat_deg, g.lon_deg);
+    const std::optional<double> ground = sweep_window->HeightAt(g.lat_deg, g.lon_deg);
     if (!ground) return std::nullopt;
     g.height_m = altitude_given ? std::max(given_eye, *ground + kDefaultEyeHeightM) : *ground + given_agl;
-    return ComputeHorizon(site.window(), g, ho);
+    return ComputeHorizon(*sweep_window, g, ho);
   };
   // The best pose's cost at each place (the search's, under the DEM error
   // model as given: comparable between places).
@@ -260,6 +284,7 @@ PositionCheck CheckPositionConsistency(const Site& site, const HorizonProfile& h
     return p.en.norm() > 1.0 && p.en.norm() <= co.first_step_m + 1.0 && p.cost < (1.0 + co.wide_trigger) * given.cost;
   });
   if (!refused() && shallow && co.wide_radius_m > co.first_step_m) {
+    if ((indexed = WithPostTrig(site.window()))) sweep_window = &*indexed;
     places.clear();
     const double s = co.wide_spacing_m, row = s * std::sqrt(0.75);
     const int rows = static_cast<int>(std::ceil(co.wide_radius_m / row));
