@@ -208,9 +208,9 @@ TEST(ComputeHorizon, SectorGivesTheSameBinsInsideAndNaNOutside) {
 }
 
 // A projected grid's posts carry their own sines and cosines
-// (DemGrid::post_trig, from IndexTrig): the sweep takes the longitude
-// differences' from them by the difference formulae. The horizon must be
-// the one computed from the posts' degrees.
+// (DemGrid::post_trig, from IndexTrig): the sweep forms those of each
+// post's longitude difference from the observer by the difference
+// formulae. The horizon must be the one computed from the posts' degrees.
 TEST(ComputeHorizon, APostsCachedTrigonometryGivesTheSameHorizon) {
   DemGrid g = SynthesizeDem(45.3, 6.7, 0.002, 301, 301, ConeHeight(45.1, 7.1, 200.0, 1500.0, 9000.0));
   g.separable = false;
