@@ -630,4 +630,18 @@ std::optional<double> TerrainWindow::HeightAt(double lat_deg, double lon_deg) co
   return std::nullopt;
 }
 
+std::optional<TerrainWindow> WithPostTrig(const TerrainWindow& window, size_t max_posts) {
+  size_t posts = 0;
+  bool projected = false;
+  for (const DemGrid& g : window.grids) {
+    posts += g.height_m.size();
+    projected = projected || (!g.separable && g.post_trig.empty());
+  }
+  if (!projected || posts > max_posts) return std::nullopt;
+  TerrainWindow out = window;
+  for (DemGrid& g : out.grids)
+    if (!g.separable && g.post_trig.empty()) g.IndexTrig();
+  return out;
+}
+
 }  // namespace horizonreg

@@ -46,6 +46,16 @@ struct TerrainWindow {
   std::optional<double> HeightAt(double lat_deg, double lon_deg) const;
 };
 
+// A copy of `window` whose projected (non-separable) grids carry their
+// posts' sines and cosines (DemGrid::IndexTrig), for many horizons over one
+// window (the position check's wide look, locate's viewpoints); nullopt
+// when it has no projected grid without them, or more than `max_posts`
+// posts (about 50 bytes a post while the copy lives). On the real photos'
+// 100 m projected DEM (377 000 posts) the copy and its trigonometry take
+// about 15 ms, a horizon of the position check's places about 0.5 ms less.
+inline constexpr size_t kMaxTrigIndexedPosts = size_t{2} << 20;
+std::optional<TerrainWindow> WithPostTrig(const TerrainWindow& window, size_t max_posts = kMaxTrigIndexedPosts);
+
 // A WGS84 bounding box, degrees (east may exceed 180 for a box across the antimeridian).
 struct GeoBox {
   double south = 0.0, north = 0.0, west = 0.0, east = 0.0;

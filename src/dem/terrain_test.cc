@@ -5,10 +5,12 @@
 #include <gtest/gtest.h>
 #include <ogr_srs_api.h>
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 
 #include "testing/shared_data.h"
+#include "util/angles.h"
 #include "util/errors.h"
 
 namespace horizonreg {
@@ -167,6 +169,45 @@ TEST(Terrain, ReadsTheMatplotlibJacksboroNpz) {
   for (float v : w.grids[0].height_m) lo = std::min(lo, v), hi = std::max(hi, v);
   EXPECT_NEAR(lo, 236, 5);
   EXPECT_NEAR(hi, 1076, 5);
+}
+
+// A grid of 4 x 3 posts, 0.01 deg apart from (45.0, 7.0), separable or
+// with every post's position (a projected grid's form).
+DemGrid SmallGrid(bool separable) {
+  DemGrid g;
+  g.width = 4, g.height = 3;
+  g.height_m.assign(12, 100.0f);
+  g.separable = separable;
+  g.lat0_deg = 45.0, g.dlat_deg = -0.01, g.lon0_deg = 7.0, g.dlon_deg = 0.01;
+  if (!separable) {
+    for (int r = 0; r < g.height; ++r)
+      for (int c = 0; c < g.width; ++c) g.lat_deg.push_back(45.0 - 0.01 * r), g.lon_deg.push_back(7.0 + 0.01 * c);
+    g.IndexPositions();
+  }
+  return g;
+}
+
+TEST(WithPostTrig, IndexesACopyOfTheProjectedGridsOnly) {
+  TerrainWindow w;
+  w.grids.push_back(SmallGrid(true));
+  EXPECT_FALSE(WithPostTrig(w).has_value());  // nothing to index
+  w.grids.push_back(SmallGrid(false));
+  const std::optional<TerrainWindow> indexed = WithPostTrig(w);
+  ASSERT_TRUE(indexed.has_value());
+  ASSERT_EQ(indexed->grids.size(), 2u);
+  EXPECT_TRUE(indexed->grids[0].post_trig.empty());
+  ASSERT_EQ(indexed->grids[1].post_trig.size(), 4u * 12u);
+  EXPECT_TRUE(w.grids[1].post_trig.empty());  // the given window is left as it was
+  // Post (row 2, column 3): sin and cos of its latitude and longitude.
+  const double* t = indexed->grids[1].post_trig.data() + 4 * (2 * 4 + 3);
+  EXPECT_NEAR(t[0], std::sin(DegToRad(44.98)), 1e-15);
+  EXPECT_NEAR(t[1], std::cos(DegToRad(44.98)), 1e-15);
+  EXPECT_NEAR(t[2], std::sin(DegToRad(7.03)), 1e-15);
+  EXPECT_NEAR(t[3], std::cos(DegToRad(7.03)), 1e-15);
+  EXPECT_EQ(indexed->HeightAt(44.995, 7.015), w.HeightAt(44.995, 7.015));
+  EXPECT_FALSE(WithPostTrig(*indexed).has_value());  // already indexed
+  EXPECT_FALSE(WithPostTrig(w, 23).has_value());     // 24 posts: more than allowed
+  EXPECT_TRUE(WithPostTrig(w, 24).has_value());
 }
 
 }  // namespace

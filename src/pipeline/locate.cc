@@ -274,7 +274,7 @@ LocateResult Locate(const std::vector<std::string>& dem, const cv::Mat& image, c
   return out;
 }
 
-LocateResult LocateInWindow(const TerrainWindow& window, const cv::Mat& image, const LocateOptions& options,
+LocateResult LocateInWindow(const TerrainWindow& given_window, const cv::Mat& image, const LocateOptions& options,
                             ThreadPool* pool) {
   options.Check();
   using namespace locate_detail;
@@ -283,7 +283,12 @@ LocateResult LocateInWindow(const TerrainWindow& window, const cv::Mat& image, c
   const double grid = options.grid_m > 0 ? options.grid_m : std::clamp(radius / 30.0, 100.0, 400.0);
   out.grid_m = grid;
   auto t0 = Clock::now();
-  const TerrainWindow coarse = Coarsen(window, options.coarse_post_m);
+  // Thousands of horizons sweep the same window: a projected DEM's posts
+  // carry their trigonometry (WithPostTrig; the same horizons).
+  const std::optional<TerrainWindow> indexed = WithPostTrig(given_window);
+  const TerrainWindow& window = indexed ? *indexed : given_window;
+  TerrainWindow coarse = Coarsen(window, options.coarse_post_m);
+  if (std::optional<TerrainWindow> c = WithPostTrig(coarse)) coarse = std::move(*c);
   out.dem_ms = MsSince(t0);
 
   // The skyline, once.

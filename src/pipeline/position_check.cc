@@ -78,27 +78,6 @@ void HoldSectorEdges(HorizonProfile& h) {
   }
 }
 
-// A copy of `window` whose projected (non-separable) grids carry their
-// posts' sines and cosines (DemGrid::IndexTrig) for the wide look's many
-// sweeps; nullopt when it has none, or too many posts to copy (more than
-// kMaxIndexedPosts: about 50 bytes a post while the grid is fitted). On the
-// real photos' 100 m projected DEM (377 000 posts) the copy and its
-// trigonometry take about 15 ms, the 144 places' horizons 60-90 ms less.
-std::optional<TerrainWindow> WithPostTrig(const TerrainWindow& window) {
-  constexpr size_t kMaxIndexedPosts = size_t{2} << 20;
-  size_t posts = 0;
-  bool projected = false;
-  for (const DemGrid& g : window.grids) {
-    posts += g.height_m.size();
-    projected = projected || (!g.separable && g.post_trig.empty());
-  }
-  if (!projected || posts > kMaxIndexedPosts) return std::nullopt;
-  TerrainWindow out = window;
-  for (DemGrid& g : out.grids)
-    if (!g.separable && g.post_trig.empty()) g.IndexTrig();
-  return out;
-}
-
 }  // namespace
 
 PositionCheck CheckPositionConsistency(const Site& site, const HorizonProfile& horizon, const Skyline& skyline,
