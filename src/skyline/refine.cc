@@ -24,6 +24,16 @@ constexpr float kSkyEndTexture = 3.0f;      // their texture over the fitted row
 constexpr int kSkyEndEdgeRows = 2;          // rows above the boundary left out of the texture (a sloping edge)
 constexpr float kSkyEndTextureFloor = 0.3f;
 
+// RaiseToFirstDeparture (at 1024 columns; rows scale with the width).
+constexpr int kFirstDepartSearchRows = 6;      // how far above the boundary the first departure is sought
+constexpr int kFirstDepartFitRows = 12;        // the sky's rows above the search, fitted by a line
+constexpr int kFirstDepartGroundRows = 5;      // rows read below the boundary
+constexpr float kFirstDepartShare = 0.3f;      // a departure of this share of the contrast is terrain's ...
+constexpr float kFirstDepartMinDeltaL = 2.0f;  // ... and at least this (JPEG's blocks in a smooth sky stay below)
+constexpr float kFirstDepartSigmas = 6.0f;     // ... and this many of the sky's robust sigmas
+constexpr float kFirstDepartBluer = 2.0f;      // b*: a row this much bluer than the fitted sky is sky
+constexpr double kFirstDepartMinRaise = 0.5;   // rows
+
 // RaiseToSkyModelDeparture (at 1024 columns; rows scale with the width).
 constexpr int kDepartSearchRows = 20;     // how far above the boundary the ridge's top is sought
 constexpr int kDepartLineRows = 16;       // the rows above a candidate row fitted by a line
@@ -212,6 +222,64 @@ void RaiseToSkyEnd(const cv::Mat& bgr, const std::vector<uint8_t>& skip, std::ve
       if (textured(tex) && textured(curl)) y[x] = first[x] + r - 0.5;
       break;
     }
+  }
+}
+
+void RaiseToFirstDeparture(const cv::Mat& bgr, const std::vector<uint8_t>& skip, std::vector<double>& y) {
+  const int h = bgr.rows, w = bgr.cols;
+  const double scale = std::max(1.0, w / 1024.0);
+  const int search = static_cast<int>(std::lround(kFirstDepartSearchRows * scale));
+  const int n = static_cast<int>(std::lround(kFirstDepartFitRows * scale));
+  const int count = n + search + kFirstDepartGroundRows + 1;
+  std::vector<int> first(w, RefineStrips::kNoStrip);
+  for (int x = 0; x < w; ++x)
+    if (std::isfinite(y[x]) && !skip[x] && std::floor(y[x]) - search - n >= 0 &&
+        std::floor(y[x]) + kFirstDepartGroundRows < h)
+      first[x] = static_cast<int>(std::floor(y[x])) - search - n;
+  LabStrips lab;
+  AverageStrips(bgr, first, count, 1, lab.bgr);
+  lab.Convert();
+  std::vector<float> dep(count), res(n);
+  for (int x = 0; x < w; ++x) {
+    if (first[x] == RefineStrips::kNoStrip) continue;
+    const size_t base = static_cast<size_t>(x) * count;
+    const float* l = lab.l.data() + base;
+    const float* b = lab.b.data() + base;
+    const int yi = static_cast<int>(std::floor(y[x])) - first[x];  // the boundary row, strip index
+    const int r0 = yi - search;                                   // the first row searched; the sky's rows above it
+    // The sky: least-squares lines in L* and b* through the n rows above the search.
+    const double tm = r0 - (n + 1) / 2.0;
+    double stt = 0, ml = 0, mb = 0, stl = 0, stb = 0;
+    for (int j = r0 - n; j < r0; ++j) {
+      const double t = j - tm;
+      stt += t * t, ml += l[j], mb += b[j], stl += t * l[j], stb += t * b[j];
+    }
+    ml /= n, mb /= n;
+    const double sl = stl / stt, sb = stb / stt;
+    auto dl = [&](int j) { return static_cast<float>(l[j] - (ml + sl * (j - tm))); };
+    auto db = [&](int j) { return static_cast<float>(b[j] - (mb + sb * (j - tm))); };
+    for (int j = r0 - n; j < r0; ++j) res[j - (r0 - n)] = std::abs(dl(j));
+    std::nth_element(res.begin(), res.begin() + n / 2, res.end());
+    const float sigma = 1.48f * res[n / 2];
+    // A row bluer than that sky is sky (a band of blue sky under a cloud
+    // the lines were fitted to): the lines are not the sky next to the boundary.
+    bool bluer = false;
+    for (int j = r0; j <= yi; ++j) bluer = bluer || db(j) < -kFirstDepartBluer;
+    if (bluer) continue;
+    // The contrast: the ground's departure (rows 2-4 below the boundary), or
+    // a band's on the way down (snow whiter than the sky over darker rock).
+    float ground = 0;
+    for (int j = yi + 2; j <= yi + 4; ++j) ground += dl(j) / 3;
+    float contrast = std::abs(ground);
+    for (int j = r0; j <= yi; ++j) dep[j] = std::abs(dl(j)), contrast = std::max(contrast, dep[j]);
+    const float threshold = std::max({kFirstDepartShare * contrast, kFirstDepartMinDeltaL, kFirstDepartSigmas * sigma});
+    // The topmost row from which every row down to the boundary departs.
+    int top = -1;
+    for (int j = yi; j >= r0 && dep[j] > threshold; --j) top = j;
+    if (top <= r0) continue;  // none, or the whole search departs (the lines are not the sky's)
+    // Where the departure crosses the threshold, rows read at their centres (row j at j + 0.5).
+    const double raised = first[x] + (top - 1) + 0.5 + (threshold - dep[top - 1]) / std::max(1e-6f, dep[top] - dep[top - 1]);
+    if (raised < y[x] - kFirstDepartMinRaise) y[x] = raised;
   }
 }
 

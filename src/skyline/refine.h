@@ -125,6 +125,30 @@ ColumnFit RefineColumn(RefineStrips& strips, int x, int h, int centre, int windo
 // `skip` and null ones are left alone.
 void RaiseToSkyEnd(const cv::Mat& bgr, const std::vector<uint8_t>& skip, std::vector<double>& y);
 
+// Raises each column's boundary to where the lightness first departs from
+// the sky's, up to 6 rows (at 1024 columns) above it: the top of a ridge
+// whose uppermost rows are fainter than the edge the refinement chose lower
+// down (a dark crest over bright snow, a bright rim over dark rock, haze
+// thinning down the upper slope). The half-way crossing places such a
+// boundary on the lower edge, 2-6 rows under the traced horizon of real
+// photos. Per column (averaged with its two neighbours):
+//  - the sky is a line in L* and one in b* through the 12 rows above the
+//    search;
+//  - a row departs when its L* is off the sky's line by more than 30% of the
+//    contrast (the ground's departure 2-4 rows below the boundary, or a
+//    band's on the way down when larger), 2 delta L and 6 robust sigmas of
+//    the fitted rows;
+//  - the boundary rises to where the departure crosses that threshold in
+//    the topmost row from which every row down to the boundary departs,
+//    when that is at least half a row higher and below the search's top row.
+// Lightness only: JPEG keeps the chroma at half resolution and blurs it
+// over the edge (its ramp starts 2-3 rows above a rendered horizon's
+// truth). A column whose rows down to the boundary include one more than
+// 2 b* bluer than the fitted sky is left alone: the lines were fitted to
+// a cloud over a band of blue sky. Columns flagged in `skip` and null ones
+// are left alone.
+void RaiseToFirstDeparture(const cv::Mat& bgr, const std::vector<uint8_t>& skip, std::vector<double>& y);
+
 // Raises each column's boundary to the top of a ridge that departs from the
 // sky's expected colour, when the boundary found lies on a clearer edge
 // lower down: a far ridge in haze a few delta E off a smooth sky (snow

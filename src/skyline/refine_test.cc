@@ -3,6 +3,8 @@
 
 #include <gtest/gtest.h>
 
+#include <opencv2/imgproc.hpp>
+
 #include <algorithm>
 #include <cmath>
 #include <tuple>
@@ -125,6 +127,75 @@ TEST(RaiseToSkyModelDeparture, SkippedColumnsAreLeftAlone) {
     EXPECT_TRUE(std::isnan(alt[x])) << x;
   }
   EXPECT_GE(CountAt(y, kTop - 0.5), 0.45 * kW);
+}
+
+// RaiseToFirstDeparture on columns of: sky (CIELAB L* 55, b* -12) down to
+// row kCrest, then `band(row)` (L*, b*) down to kBoundary, then `ground`;
+// every column's boundary found at kBoundary (the band's lower edge).
+constexpr int kCrest = kBoundary - 4;
+
+cv::Vec3b FromLab(float l, float b) {
+  cv::Mat lab(1, 1, CV_32FC3, cv::Scalar(l, 0.0f, b)), bgr;
+  cv::cvtColor(lab, bgr, cv::COLOR_Lab2BGR);
+  cv::Vec3f v = bgr.at<cv::Vec3f>(0, 0);
+  return cv::Vec3b(cv::saturate_cast<uchar>(255 * v[0]), cv::saturate_cast<uchar>(255 * v[1]),
+                   cv::saturate_cast<uchar>(255 * v[2]));
+}
+
+template <typename Band>
+std::vector<double> RaiseToFirstDepartureIn(Band band, cv::Vec3b ground, std::vector<uint8_t> skip = {},
+                                            cv::Vec3b sky = FromLab(55, -12)) {
+  cv::Mat img(kH, kW, CV_8UC3);
+  for (int y = 0; y < kH; ++y) {
+    const cv::Vec3b c = y < kCrest ? sky : y < kBoundary ? band(y) : ground;
+    for (int x = 0; x < kW; ++x) img.at<cv::Vec3b>(y, x) = c;
+  }
+  std::vector<double> y(kW, kBoundary);
+  y[1] = NAN;
+  if (skip.empty()) skip.assign(kW, 0);
+  RaiseToFirstDeparture(img, skip, y);
+  return y;
+}
+
+TEST(RaiseToFirstDeparture, ADarkCrestOverBrightSnowRaisesTheBoundaryToItsTop) {
+  // A rock crest 4 delta L darker than the sky (the ground's contrast 10).
+  const std::vector<double> y = RaiseToFirstDepartureIn([](int) { return FromLab(51, -11); }, FromLab(65, -3));
+  EXPECT_TRUE(std::isnan(y[1]));
+  for (int x = 0; x < kW; ++x) {
+    if (x == 1) continue;
+    EXPECT_NEAR(y[x], kCrest, 0.6) << x;
+  }
+}
+
+TEST(RaiseToFirstDeparture, ABrightRimOverDarkRockRaisesTheBoundary) {
+  // A sunlit rim 8 delta L over the sky, then rock 20 under it (the
+  // threshold 30% of the larger contrast: 6).
+  const std::vector<double> y = RaiseToFirstDepartureIn([](int) { return FromLab(63, -8); }, FromLab(35, -2));
+  EXPECT_NEAR(y[100], kCrest, 0.6);
+}
+
+TEST(RaiseToFirstDeparture, ASharpEdgeAFaintBandOrABlueBandUnderACloudStays) {
+  // Sky straight down to the boundary.
+  std::vector<double> y = RaiseToFirstDepartureIn([](int) { return FromLab(55, -12); }, FromLab(70, -2));
+  EXPECT_EQ(CountAt(y, kBoundary), kW - 1);
+  for (int x = 0; x < kW; ++x) {
+    if (x == 1) continue;
+    EXPECT_EQ(y[x], kBoundary) << x;
+  }
+  // A band 1.5 delta L off the sky: below the least departure (JPEG's blocks).
+  y = RaiseToFirstDepartureIn([](int) { return FromLab(53.5, -12); }, FromLab(70, -2));
+  EXPECT_EQ(y[100], kBoundary);
+  // A white cloud the sky's lines are fitted to, over a band of blue sky.
+  y = RaiseToFirstDepartureIn([](int) { return FromLab(60, -35); }, FromLab(40, 5), {}, FromLab(90, -5));
+  EXPECT_EQ(y[100], kBoundary);
+}
+
+TEST(RaiseToFirstDeparture, SkippedColumnsAreLeftAlone) {
+  std::vector<uint8_t> skip(kW, 0);
+  for (int x = 0; x < kW; x += 2) skip[x] = 1;
+  const std::vector<double> y = RaiseToFirstDepartureIn([](int) { return FromLab(51, -11); }, FromLab(65, -3), skip);
+  for (int x = 0; x < kW; x += 2) EXPECT_EQ(y[x], kBoundary) << x;
+  EXPECT_NEAR(y[101], kCrest, 0.6);
 }
 
 // RaiseDips on a scene whose boundary was found on the faint ridge's top

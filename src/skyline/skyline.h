@@ -51,11 +51,13 @@ struct Skyline {
   std::vector<double> y;
   std::vector<double> confidence;  // [0, 1] per column; 0 where y is NaN
   // Empty, or per column the clearer edge below y (NaN where there is
-  // none) that y was raised from to the top of a faint far ridge. The
+  // none) that y was raised from to the top of a faint far ridge, or of a
+  // ridge whose uppermost rows are fainter than its edge lower down. The
   // matching reads it (MatchY): a coarse DEM flattens such ridges or lacks
   // them (measured on the real photos: matching the raised boundary cost 3
   // of 12 registrations, scoring each column by the better of the two cost
-  // 1 and brought wrong positions nearer the ambiguity gate).
+  // 1 and brought wrong positions nearer the ambiguity gate; matching the
+  // first-departure raise cost 1).
   std::vector<double> y_alt;
   double Alt(int x) const { return x >= 0 && x < static_cast<int>(y_alt.size()) ? y_alt[x] : NAN; }
   // The boundary the matching reads in column x: y_alt where set, else y.
