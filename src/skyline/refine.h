@@ -140,7 +140,9 @@ void RaiseToSkyEnd(const cv::Mat& bgr, const std::vector<uint8_t>& skip, std::ve
 //    the fitted rows;
 //  - the boundary rises to where the departure crosses that threshold in
 //    the topmost row from which every row down to the boundary departs,
-//    when that is at least half a row higher and below the search's top row.
+//    when that is at least half a row higher and below the search's top row
+//    (the boundary's own row may match the sky's lightness when it lies
+//    half way from a darker crest to brighter ground).
 // Lightness only: JPEG keeps the chroma at half resolution and blurs it
 // over the edge (its ramp starts 2-3 rows above a rendered horizon's
 // truth). A column whose rows down to the boundary include one more than

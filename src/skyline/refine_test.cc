@@ -144,10 +144,13 @@ cv::Vec3b FromLab(float l, float b) {
 
 template <typename Band>
 std::vector<double> RaiseToFirstDepartureIn(Band band, cv::Vec3b ground, std::vector<uint8_t> skip = {},
-                                            cv::Vec3b sky = FromLab(55, -12)) {
+                                            cv::Vec3b sky = FromLab(55, -12), bool sky_at_boundary = false) {
   cv::Mat img(kH, kW, CV_8UC3);
   for (int y = 0; y < kH; ++y) {
-    const cv::Vec3b c = y < kCrest ? sky : y < kBoundary ? band(y) : ground;
+    const cv::Vec3b c = y < kCrest                          ? sky
+                        : y < kBoundary                     ? band(y)
+                        : y == kBoundary && sky_at_boundary ? sky
+                                                            : ground;
     for (int x = 0; x < kW; ++x) img.at<cv::Vec3b>(y, x) = c;
   }
   std::vector<double> y(kW, kBoundary);
@@ -165,6 +168,18 @@ TEST(RaiseToFirstDeparture, ADarkCrestOverBrightSnowRaisesTheBoundaryToItsTop) {
     if (x == 1) continue;
     EXPECT_NEAR(y[x], kCrest, 0.6) << x;
   }
+}
+
+TEST(RaiseToFirstDeparture, ADarkCrestWhoseBoundaryRowMatchesTheSkyIsRaised) {
+  // The boundary's own row half way from the dark crest to the snow: the
+  // sky's lightness.
+  const std::vector<double> y =
+      RaiseToFirstDepartureIn([](int) { return FromLab(51, -11); }, FromLab(65, -3), {}, FromLab(55, -12), true);
+  EXPECT_NEAR(y[100], kCrest, 0.6);
+  // Not a bright band over darker ground so (a sky's glow at the horizon).
+  const std::vector<double> glow =
+      RaiseToFirstDepartureIn([](int) { return FromLab(63, -10); }, FromLab(35, -2), {}, FromLab(55, -12), true);
+  EXPECT_EQ(glow[100], kBoundary);
 }
 
 TEST(RaiseToFirstDeparture, ABrightRimOverDarkRockRaisesTheBoundary) {
