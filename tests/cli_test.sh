@@ -167,6 +167,18 @@ PY
   echo '{"inclinometer_pitch_deg": "up"}' > "$work/bad_sensors.json"
   expect_exit2 "register bad sensors file" register "$sc/zion_01.jpg" --dem "$shared/dem/zion_srtm.tif" --lat 37.26 --lon -112.97 --sensors "$work/bad_sensors.json" --overlay "$work/out.png"
   expect_exit2 "register missing image" register "$work/nope.jpg" --dem "$shared/dem/zion_srtm.tif" --lat 37.26 --lon -112.97 --json "$work/out.json"
+  # A directory or a device given for a file (a stream opens a directory on
+  # Linux: its size read as 8 EB, its first read an internal error; /dev/zero
+  # has no size and was read until the OOM killer came).
+  mkdir -p "$work/adir"
+  expect_exit2 "register directory as image" register "$work/adir" --dem "$shared/dem/zion_srtm.tif" --lat 37.26 --lon -112.97 --json "$work/out.json"
+  expect_exit2 "register /dev/zero as image" register /dev/zero --dem "$shared/dem/zion_srtm.tif" --lat 37.26 --lon -112.97 --json "$work/out.json"
+  for opt in --camera --sensors --skyline; do
+    expect_exit2 "register directory as $opt" register "$sc/zion_01.jpg" --dem "$shared/dem/zion_srtm.tif" --lat 37.26 --lon -112.97 $opt "$work/adir" --json "$work/out.json"
+    expect_exit2 "register /dev/zero as $opt" register "$sc/zion_01.jpg" --dem "$shared/dem/zion_srtm.tif" --lat 37.26 --lon -112.97 $opt /dev/zero --json "$work/out.json"
+  done
+  expect_exit2 "register directory as --json" register "$sc/zion_01.jpg" --dem "$shared/dem/zion_srtm.tif" --lat 37.26 --lon -112.97 --json "$work/adir/"
+  [ -z "$(ls -A "$work/adir")" ] && ok "no temporary file left in the directory given as --json" || bad "files left in $work/adir: $(ls -A "$work/adir")"
   if [ -f "$work/grey.png" ]; then
     "$bin" register "$work/grey.png" --dem "$shared/dem/zion_srtm.tif" --lat 37.26 --lon -112.97 > "$work/g.json" \
       && grep -q '"status": "no_match"' "$work/g.json" && ok "uniform image: no_match, exit 0" || bad "uniform image register"
@@ -175,6 +187,8 @@ PY
   "$bin" overlay "$sc/zion_01.jpg" --pose "$work/r.json" --dem "$shared/dem/zion_srtm.tif" \
     --landmarks "$shared/landmarks/zion.geojson" -o "$work/ov.png" \
     && file "$work/ov.png" | grep -q "PNG image data, 1024 x 683" && ok "overlay from a register pose" || bad "overlay"
+  expect_exit2 "overlay directory as --pose" overlay "$sc/zion_01.jpg" --pose "$work/adir" --dem "$shared/dem/zion_srtm.tif" -o "$work/out.png"
+  expect_exit2 "overlay /dev/zero as --landmarks" overlay "$sc/zion_01.jpg" --pose "$work/r.json" --dem "$shared/dem/zion_srtm.tif" --landmarks /dev/zero -o "$work/out.png"
   expect_exit2 "overlay with a no_match pose" overlay "$sc/zion_01.jpg" --pose "$work/fog.json" --dem "$shared/dem/zion_srtm.tif" -o "$work/out.png"
   echo 'name,lat,lon' > "$work/bad.csv"; echo 'X,95,10' >> "$work/bad.csv"
   expect_exit2 "overlay bad landmarks" overlay "$sc/zion_01.jpg" --pose "$work/r.json" --dem "$shared/dem/zion_srtm.tif" --landmarks "$work/bad.csv" -o "$work/out.png"

@@ -17,6 +17,9 @@ void WriteOutput(const std::string& path, const std::string& content) {
     return;
   }
   const std::filesystem::path out(path);
+  std::error_code dir_ec;
+  if (std::filesystem::is_directory(out, dir_ec) || !out.has_filename())
+    throw InvalidArgument("cannot write '" + path + "': a directory, not a file");
   const std::filesystem::path tmp = out.parent_path() / ("." + out.filename().string() + ".tmp");
   {
     std::ofstream f(tmp, std::ios::binary);
@@ -31,7 +34,8 @@ void WriteOutput(const std::string& path, const std::string& content) {
   std::error_code ec;
   std::filesystem::rename(tmp, out, ec);
   if (ec) {
-    std::filesystem::remove(tmp, ec);
+    std::error_code ignored;
+    std::filesystem::remove(tmp, ignored);
     throw IoError("cannot write '" + path + "': " + ec.message());
   }
 }

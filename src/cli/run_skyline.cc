@@ -12,6 +12,7 @@
 #include "pipeline/report.h"
 #include "skyline/skyline.h"
 #include "util/errors.h"
+#include "util/text.h"
 
 namespace horizonreg::cli {
 
@@ -42,9 +43,9 @@ int RunSkyline(const SkylineArgs& a) {
 }
 
 Skyline ReadSkylineJson(const std::string& path, int width, int height) {
-  std::ifstream in(path);
-  if (!in) throw IoError("skyline: cannot open '" + path + "'");
-  const nlohmann::json j = nlohmann::json::parse(in, nullptr, /*allow_exceptions=*/false);
+  // A skyline JSON has a few numbers per column: 64 MB is a 1 M-column image's.
+  const nlohmann::json j =
+      nlohmann::json::parse(ReadTextFile(path, "skyline", size_t{64} << 20), nullptr, /*allow_exceptions=*/false);
   auto bad = [&](const std::string& what) -> Skyline { throw InvalidArgument("skyline: '" + path + "': " + what); };
   if (!j.is_object() || !j.contains("y") || !j["y"].is_array()) return bad("not a skyline JSON (no \"y\" array)");
   if (!j.contains("width") || !j["width"].is_number_integer() || !j.contains("height") ||

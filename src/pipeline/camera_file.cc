@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "util/errors.h"
+#include "util/text.h"
 
 namespace horizonreg {
 namespace {
@@ -167,13 +168,8 @@ CameraIntrinsics CameraFromJson(const nlohmann::json& camera, int image_width, i
 }
 
 CameraIntrinsics ReadCameraFile(const std::string& path, int image_width, int image_height) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw IoError("camera: cannot open '" + path + "'");
-  std::stringstream text;
-  text << in.rdbuf();
-  if (in.bad()) throw IoError("camera: cannot read '" + path + "'");
-  const std::string s = text.str();
-  if (s.size() > (16u << 20)) Bad(path, "larger than 16 MB: not a camera file");
+  // Bounded before it is read (a camera file is a few KB).
+  const std::string s = ReadTextFile(path, "camera", size_t{16} << 20);
   const nlohmann::json j = nlohmann::json::parse(s, nullptr, /*allow_exceptions=*/false);
   if (j.is_object()) {
     const nlohmann::json& c = j.contains("camera") && j["camera"].is_object() ? j["camera"] : j;

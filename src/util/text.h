@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <map>
 #include <optional>
@@ -65,22 +66,40 @@ inline std::vector<std::string> SplitCsvLine(const std::string& line) {
   return out;
 }
 
+// Throws InvalidArgument "<what>: '<path>' is a directory, not a file" when
+// it is one (a stream opens a directory on Linux, and its size reads as
+// 8 EB, its first read as an internal error).
+inline void RequireNotDirectory(const std::string& path, const std::string& what) {
+  std::error_code ec;
+  if (std::filesystem::is_directory(path, ec)) throw InvalidArgument(what + ": '" + path + "' is a directory, not a file");
+}
+
 // The whole file as text. Throws IoError "<what>: cannot open '<path>'", and
-// InvalidArgument when the file is larger than max_bytes (checked before
-// reading: input files are bounded, never read into an out-of-memory kill).
+// InvalidArgument when the file is a directory or larger than max_bytes
+// (checked before reading: input files are bounded, never read into an
+// out-of-memory kill).
 inline std::string ReadTextFile(const std::string& path, const std::string& what, size_t max_bytes = size_t{1} << 30) {
+  RequireNotDirectory(path, what);
   std::ifstream f(path, std::ios::binary);
   if (!f) throw IoError(what + ": cannot open '" + path + "'");
+  const std::string limit = "the " + std::to_string(max_bytes >> 20) + " MB such a file may have";
   f.seekg(0, std::ios::end);
   const std::streamoff size = f.tellg();
   if (size > 0 && static_cast<size_t>(size) > max_bytes)
-    throw InvalidArgument(what + ": '" + path + "' is " + std::to_string(size >> 20) + " MB, more than the " +
-                          std::to_string(max_bytes >> 20) + " MB such a file may have");
+    throw InvalidArgument(what + ": '" + path + "' is " + std::to_string(size >> 20) + " MB, more than " + limit);
+  f.clear();
   f.seekg(0, std::ios::beg);
-  std::stringstream ss;
-  ss << f.rdbuf();
+  // Read in blocks up to the bound: a device or pipe (/dev/zero, a FIFO)
+  // has no size to check first.
+  std::string out;
+  char block[1 << 16];
+  while (f.read(block, sizeof(block)) || f.gcount() > 0) {
+    out.append(block, static_cast<size_t>(f.gcount()));
+    if (out.size() > max_bytes) throw InvalidArgument(what + ": '" + path + "' is larger than " + limit);
+    if (f.eof()) break;
+  }
   if (f.bad()) throw IoError(what + ": cannot read '" + path + "'");
-  return ss.str();
+  return out;
 }
 
 // A CSV table with a header line: (line number, column -> cell) per row,
