@@ -208,6 +208,10 @@ PY
       && head -1 "$work/p.csv" | grep -q "^frame,azimuth_deg,pitch_deg,roll_deg,hfov_deg,source$" && [ -s "$work/t.mp4" ] \
       && ok "track: poses CSV, video, garbage sensor rows skipped with warnings" || bad "track $(cat "$work/track.err")"
     expect_exit2 "track unopenable video" track "$work/nope.mp4" --dem "$shared/dem/mt_rainier_90m.tif" --lat 46.86 --lon -121.57 --poses "$work/out.json"
+    # No raw OpenCV, GStreamer or FFmpeg lines on stderr: one line of ours.
+    echo "not a video" > "$work/text.mp4"
+    expect_exit2 "track text file as video" track "$work/text.mp4" --dem "$shared/dem/mt_rainier_90m.tif" --lat 46.86 --lon -121.57 --poses "$work/out.json"
+    expect_exit2 "track directory as video" track "$work/adir" --dem "$shared/dem/mt_rainier_90m.tif" --lat 46.86 --lon -121.57 --poses "$work/out.json"
     printf 'a,b\n1,2\n' > "$work/nohead.csv"
     expect_exit2 "track sensor log without frame column" track "$q/rainier_pan_%04d.jpg" --dem "$shared/dem/mt_rainier_90m.tif" --lat 46.86 --lon -121.57 --sensors "$work/nohead.csv" --poses "$work/out.json"
   fi

@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
+#include <opencv2/core/utils/logger.hpp>
 #include <opencv2/videoio.hpp>
 #include <sstream>
 
@@ -48,6 +49,12 @@ int RunTrack(const TrackArgs& a) {
   std::optional<SensorCalibration> start_calibration;
   if (!a.calibration_in.empty()) start_calibration = SensorCalibration::Load(a.calibration_in);
 
+  // OpenCV's video backends and FFmpeg print their own warnings on stderr
+  // (a file that is no video, a directory, a truncated stream): the user
+  // gets this command's one line instead. A level the user set is kept.
+  cv::utils::logging::setLogLevel(cv::utils::logging::LOG_LEVEL_SILENT);
+  setenv("OPENCV_FFMPEG_LOGLEVEL", "-8", /*overwrite=*/0);  // AV_LOG_QUIET, read when the backend starts
+  if (std::error_code ec; std::filesystem::is_directory(a.input, ec)) throw InvalidArgument("track: '" + a.input + "' is a directory, not a video");
   cv::VideoCapture cap;
   const bool is_index = !a.input.empty() && a.input.find_first_not_of("0123456789") == std::string::npos;
   try {
