@@ -116,9 +116,10 @@ std::optional<std::pair<int, int>> DeclaredImageSize(const std::vector<unsigned 
 
 cv::Mat ReadImage(const std::string& path, double max_pixels, std::vector<std::string>* warnings) {
   std::error_code ec;
-  if (std::filesystem::is_directory(path, ec)) throw InvalidArgument("image: '" + path + "' is a directory, not a file");
-  if (!std::filesystem::exists(path, ec)) throw IoError("image: cannot open '" + path + "': no such file");
-  if (!std::filesystem::is_regular_file(path, ec)) throw InvalidArgument("image: '" + path + "' is not a regular file");
+  const std::filesystem::file_status st = std::filesystem::status(path, ec);
+  if (std::filesystem::is_directory(st)) throw InvalidArgument("image: '" + path + "' is a directory, not a file");
+  if (!std::filesystem::exists(st)) throw IoError("image: cannot open '" + path + "': no such file");
+  if (!std::filesystem::is_regular_file(st)) throw InvalidArgument("image: '" + path + "' is not a regular file");
   std::ifstream f(path, std::ios::binary);
   std::vector<uchar> bytes((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
   if (!f.good() && !f.eof()) throw IoError("image: cannot read '" + path + "'");

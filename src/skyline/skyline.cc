@@ -827,7 +827,7 @@ Skyline ExtractSkyline(const cv::Mat& image, const SkylineOptions& options) {
   // A ridge's top fainter than its edge lower down (a dark crest, a bright
   // rim, haze on the upper slope): the boundary up to where the lightness
   // first departs from the sky's (measured on the real photos: 76.3% ->
-  // 79.5% of the traced columns within 2 px; rendered 97.3% -> 97.4%). The
+  // 80.1% of the traced columns within 2 px; rendered 97.3% -> 97.4%). The
   // matching reads the edge it was raised from (y_alt): matching the raised
   // boundary against the 100 m DEM, whose flattened peaks lie lower still,
   // left AK01b_20080811 ambiguous (cost ratio 1.40 -> 1.39) and 0 of its 7
