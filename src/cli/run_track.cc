@@ -51,7 +51,8 @@ int RunTrack(const TrackArgs& a) {
 
   // OpenCV's video backends and FFmpeg print their own warnings on stderr
   // (a file that is no video, a directory, a truncated stream): the user
-  // gets this command's one line instead. A level the user set is kept.
+  // gets this command's one line instead. An FFmpeg level the user set
+  // (OPENCV_FFMPEG_LOGLEVEL) is kept.
   cv::utils::logging::setLogLevel(cv::utils::logging::LOG_LEVEL_SILENT);
   setenv("OPENCV_FFMPEG_LOGLEVEL", "-8", /*overwrite=*/0);  // AV_LOG_QUIET, read when the backend starts
   if (std::error_code ec; std::filesystem::is_directory(a.input, ec)) throw InvalidArgument("track: '" + a.input + "' is a directory, not a video");
