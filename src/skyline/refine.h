@@ -169,10 +169,15 @@ void RaiseToFirstDeparture(const cv::Mat& bgr, const std::vector<uint8_t>& skip,
 //    sky),
 //  - is not saturated blue (b* above deep_blue_b: a deep band of sky), and
 //  - is followed down to the boundary by departing rows (80% of them),
-// starts the terrain: the boundary moves to the half-way crossing from the
-// model's sky colour to the ridge's (the mean of the 3 rows below), when
-// that lies at least 3 rows (scaled likewise) above it (closer, the
-// refinement's crossing of the clearer edge is as good). Columns flagged
+// starts the terrain, unless the rows above it depart from the model by
+// more than half as much (median against median: the model does not fit
+// the sky there) or the departure falls below half its peak before a
+// boundary whose terrain departs twice that peak (sky between a band and
+// the ridge; both end the column's search). Then the boundary moves to
+// the half-way crossing from the model's sky colour to the ridge's (the
+// mean of the 3 rows below), when that lies at least 3 rows (scaled
+// likewise) above it (closer, the refinement's crossing of the clearer
+// edge is as good). Columns flagged
 // in `skip` and null ones are left alone.
 // The boundary it moved from is kept in `alt` (sized like y, NaN where
 // nothing moved).

@@ -129,6 +129,35 @@ TEST(RaiseToSkyModelDeparture, SkippedColumnsAreLeftAlone) {
   EXPECT_GE(CountAt(y, kTop - 0.5), 0.45 * kW);
 }
 
+TEST(RaiseToSkyModelDeparture, ASkyTheModelDoesNotFitAboveTheBandStays) {
+  // The model learnt a blue sky, but over this boundary the sky is a
+  // sunset's yellow glow (AKJNC_20121001): the glow departs from the model
+  // as much as the band does, so the band's departure tells nothing.
+  SkyModel model;
+  {
+    LabPlanes planes;
+    LabConverter::Instance().ConvertTransposed(Scene([](int, int) { return cv::Vec3b(205, 190, 175); }), planes);
+    model.Fit(planes, std::vector<int>(kW, kTop - 3), 2, 1.0f);
+  }
+  cv::Mat img = Scene([](int, int) { return cv::Vec3b(205, 190, 175); });
+  for (int y = 0; y < kTop; ++y)
+    for (int x = 0; x < kW; ++x) img.at<cv::Vec3b>(y, x) = cv::Vec3b(150, 205, 240);
+  std::vector<double> y(kW, kBoundary), alt;
+  RaiseToSkyModelDeparture(img, model, 1.0, 1.0, -25.0f, std::vector<uint8_t>(kW, 0), y, alt);
+  EXPECT_EQ(CountAt(y, kBoundary), kW);
+}
+
+TEST(RaiseToSkyModelDeparture, ABandThatTurnsBackToSkyOverContrastyTerrainStays) {
+  // A pale band in the sky whose colour returns to the sky's two rows above
+  // a boundary that departs four times as much (a glow's ring over a dark
+  // ridge): sky lies between the band and the terrain, so the band is no
+  // ridge. The same band reaching down to the boundary is one (first test).
+  const auto [y, alt] = RaiseBySkyModel([](int, int row) {
+    return row < kBoundary - 2 ? cv::Vec3b(205, 190, 175) : cv::Vec3b(185, 150 + row / 12, 118 + row / 12);
+  });
+  EXPECT_EQ(CountAt(y, kBoundary), kW - 1);
+}
+
 // RaiseToFirstDeparture on columns of: sky (CIELAB L* 55, b* -12) down to
 // row kCrest, then `band(row)` (L*, b*) down to kBoundary, then `ground`;
 // every column's boundary found at kBoundary (the band's lower edge).
