@@ -59,6 +59,13 @@ Modes (each a per-photo table and a summary):
             black-and-white archive print or a monochrome webcam, with no
             chroma to tell blue sky from white snow. Counts the photos within
             0.5 deg (--floors gray=N, default 0) and the false ones (0)
+  upscale2, upscale4  (not in the default set) plain on each photo
+            upscaled 2x or 4x (bicubic, JPEG quality 95, EXIF kept): the
+            pixel count of a phone's or a DSLR's photo, whose edges spread
+            over more rows than the archive's reduced copies. Counts the photos
+            within 0.5 deg (--floors upscale2=N, upscale4=N, default 0) and the
+            false ones (0)
+  wrong-upscale4  (not in the default set) the wrong probes on the 4x copies
   gray-skyline  (not in the default set; seconds) the skyline of the grey
             copies against the hand trace, as skyline (--floors
             gray-skyline=F, a share of the traced columns within 2 px)
@@ -376,7 +383,7 @@ def main():
     floors = {"plain": 12, "camera": 12, "initial": 13, "skyline": 0.9, "thin": 0.9, "skyline-given": 0.95,
               "registered-skyline": 0.9, "registered-skyline-given": 0.95,
               "thin-given": 0.95, "ring": 0, "ring-camera": 0, "ring-initial": 0, "ring-sensors": 0, "ring-noexif": 0, "ring-hfov": 0, "ring-range": 0, "ring-noalt": 0, "hfov": 12,
-              "sensors": 0, "noexif": 0, "reencode": 0, "gray": 0, "gray-skyline": 0.0}
+              "sensors": 0, "noexif": 0, "reencode": 0, "gray": 0, "upscale2": 0, "upscale4": 0, "gray-skyline": 0.0}
     for kv in (opt("--floors") or "").split(","):
         if "=" in kv:
             k, v = kv.split("=")
@@ -471,10 +478,23 @@ def main():
 
     def grey(cv2, source, path):
         return jpeg_copy(cv2, source, path, grey=True)
+
+    def upscaled(factor):
+        def write(cv2, source, path):
+            image = cv2.imread(source)
+            big = cv2.resize(image, None, fx=factor, fy=factor, interpolation=cv2.INTER_CUBIC)
+            ok, data = cv2.imencode(".jpg", big, [cv2.IMWRITE_JPEG_QUALITY, 95])
+            if ok:
+                with open(path, "wb") as f:
+                    f.write(with_exif_of(open(source, "rb").read(), data.tobytes()))
+            return ok
+        return write
     for mode, suffix, title, write in (
             ("noexif", ".noexif.png", "no prior, no EXIF (the pixels alone, as PNG)", without_exif),
             ("reencode", ".q95.jpg", "no prior, re-encoded as JPEG quality 95 (EXIF kept)", reencoded),
-            ("gray", ".gray.jpg", "no prior, grey (luma only, JPEG quality 95, EXIF kept)", grey)):
+            ("gray", ".gray.jpg", "no prior, grey (luma only, JPEG quality 95, EXIF kept)", grey),
+            ("upscale2", ".x2.jpg", "no prior, upscaled 2x (bicubic, JPEG quality 95, EXIF kept)", upscaled(2)),
+            ("upscale4", ".x4.jpg", "no prior, upscaled 4x (bicubic, JPEG quality 95, EXIF kept)", upscaled(4))):
         if mode not in modes:
             continue
         cv2 = opencv_for(mode)
@@ -561,6 +581,43 @@ def main():
         print(f"probes: {len(out)}; registered (false): {len(bad)}; errors: {len(errs)}")
         if check and (bad or errs):
             failed = True
+    if "wrong-upscale4" in modes:
+        # The wrong probes on the 4x copies: a wide photo read at its
+        # reduced size must refuse a wrong position as the photo does.
+        cv2 = opencv_for("wrong-upscale4")
+        if cv2 is None:
+            failed = failed or check
+        else:
+            write4 = upscaled(4)
+            copies = {}
+            for name, t, d in photos:
+                copies[name] = os.path.join(tmpdir, name + ".wrong.x4.jpg")
+                write4(cv2, os.path.join(d, t["image"]), copies[name])
+            probes = []
+            for p in photos:
+                for bearing, dist in WRONG_OFFSETS:
+                    lat, lon = offset_position(p[1]["lat"], p[1]["lon"], bearing, dist)
+                    probes.append((p, f"{dist / 1000:.0f} km at {bearing}", None, lat, lon))
+                for dem, lat, lon in OTHER_DEMS:
+                    if os.path.exists(os.path.join(shared, "dem", dem)):
+                        probes.append((p, dem, dem, lat, lon))
+
+            def probe4(pr):
+                (name, t, d), label, dem, lat, lon = pr
+                return name, label, register(binary, shared, d, name, t, [], dem=dem, lat=lat, lon=lon,
+                                             image=copies[name])
+            out = list(pool.map(probe4, probes))
+            print("\n== wrong position (2-10 km away) or another region's DEM, the photos upscaled 4x: "
+                  "all must be no_match ==")
+            bad = [(n, l) for n, l, r in out if r.get("status") == "registered"]
+            errs = [(n, l, r.get("message")) for n, l, r in out if r.get("status") == "error"]
+            for n, l in bad:
+                print(f"  FALSE REGISTRATION: {n} from {l}")
+            for n, l, m in errs:
+                print(f"  error: {n} from {l}: {m}")
+            print(f"probes: {len(out)}; registered (false): {len(bad)}; errors: {len(errs)}")
+            if check and (bad or errs):
+                failed = True
     for ring_mode in [m for m in ("ring", "ring-camera", "ring-initial", "ring-sensors", "ring-noexif", "ring-hfov", "ring-range", "ring-noalt")
                       if m in modes]:
         variant = ring_mode.partition("-")[2]

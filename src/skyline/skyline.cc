@@ -541,6 +541,88 @@ HR_VECTOR_CLONES void BoxReduce(const cv::Mat& bgr, int k, std::vector<uint16_t>
   }
 }
 
+// Images are extracted at about this width: the refinement's rows and
+// thresholds (steps between neighbouring rows, colours 2-4 rows from the
+// edge, the raises' rows per 1024 columns) are tuned at it. A wider image's
+// edges spread over more rows (the lens, the demosaicing, the haze), and
+// read at full size they turned faint: the real photos upscaled 4x lost
+// half the columns of the hazy CG05 ones to the contrast test.
+constexpr int kExtractWidth = 1024;
+
+// A skyline extracted from an image reduced k times (BoxReduce: reduced
+// pixel i covers full-size pixels k i .. k i + k - 1, so boundaries scale
+// by k exactly) mapped to the full size: each column interpolated between
+// the two reduced columns around its centre, or the nearer one's where the
+// other has none (none where the nearer has none).
+Skyline MappedUp(const Skyline& s, int k, int width, int height) {
+  Skyline out;
+  out.width = width;
+  out.height = height;
+  out.y.assign(width, NAN);
+  out.confidence.assign(width, 0.0);
+  if (!s.y_alt.empty()) out.y_alt.assign(width, NAN);
+  const int n = s.width;
+  if (n < 1) return out;
+  auto at = [&](const std::vector<double>& v, double u) {
+    const int i0 = std::clamp(static_cast<int>(std::floor(u)), 0, n - 1), i1 = std::min(i0 + 1, n - 1);
+    const double f = std::clamp(u - i0, 0.0, 1.0);
+    if (std::isfinite(v[i0]) && std::isfinite(v[i1])) return (1.0 - f) * v[i0] + f * v[i1];
+    return f < 0.5 ? v[i0] : v[i1];
+  };
+  for (int x = 0; x < width; ++x) {
+    const double u = (x + 0.5) / k - 0.5;
+    if (const double y = at(s.y, u); std::isfinite(y)) {
+      out.y[x] = std::clamp(k * y, 0.0, static_cast<double>(height));
+      out.confidence[x] = s.confidence[std::clamp(static_cast<int>(std::lround(u)), 0, n - 1)];
+    }
+    if (!s.y_alt.empty())
+      if (const double a = at(s.y_alt, u); std::isfinite(a) && std::isfinite(out.y[x]))
+        out.y_alt[x] = std::clamp(k * a, 0.0, static_cast<double>(height));
+  }
+  return out;
+}
+
+// The full-size row of a boundary mapped up from an image reduced k times
+// (MappedUp), which placed it to within about half a reduced row: the
+// half-way crossing of the column's colours (averaged over the k columns
+// around it) from the sky's, 2k to 3k rows above, to the ground's, 2k to 3k
+// rows below, nearest the mapped boundary and within k rows of it. Kept
+// where the two differ by less than kPolishMinContrast or no crossing lies
+// that near. NaN stays NaN.
+constexpr double kPolishMinContrast = 12.0;  // BGR distance (about 4 delta E)
+
+double PolishedRow(const cv::Mat& bgr, int k, int x, double y) {
+  if (!std::isfinite(y)) return y;
+  const int h = bgr.rows, w = bgr.cols, yi = static_cast<int>(std::floor(y));
+  if (yi - 3 * k < 0 || yi + 3 * k > h) return y;
+  const int c0 = std::max(0, x - k / 2), c1 = std::min(w - 1, x - k / 2 + k - 1);
+  auto colour = [&](int r) {
+    cv::Vec3d m(0, 0, 0);
+    const cv::Vec3b* row = bgr.ptr<cv::Vec3b>(r);
+    for (int c = c0; c <= c1; ++c) m += cv::Vec3d(row[c]);
+    return m / static_cast<double>(c1 - c0 + 1);
+  };
+  cv::Vec3d sky(0, 0, 0), ground(0, 0, 0);
+  for (int i = 0; i < k; ++i) sky += colour(yi - 3 * k + i), ground += colour(yi + 2 * k + i);
+  sky /= k, ground /= k;
+  const cv::Vec3d d = ground - sky;
+  const double dd = d.dot(d);
+  if (dd < kPolishMinContrast * kPolishMinContrast) return y;
+  auto share = [&](int r) { return (colour(r) - sky).dot(d) / dd; };  // 0 at the sky's colour, 1 at the ground's
+  double best = y, best_gap = k + 1e-9;
+  double before = share(yi - k - 1);
+  for (int r = yi - k; r <= yi + k; ++r) {
+    const double t = share(r);
+    if (before < 0.5 && t >= 0.5) {
+      // Row r - 1's centre at r - 0.5, row r's at r + 0.5.
+      const double crossing = r - 0.5 + (0.5 - before) / (t - before);
+      if (std::abs(crossing - y) < best_gap) best = crossing, best_gap = std::abs(crossing - y);
+    }
+    before = t;
+  }
+  return best;
+}
+
 // Scratch images of one extraction (work size; `_h` at half of it).
 struct Workspace {
   cv::Mat reduced, small, steps, sky, bins, steps_h, sky_h, persistent, unary, deviation, darker, clean;
@@ -601,6 +683,22 @@ cv::Mat ToBgr(const cv::Mat& image) {
 
 }  // namespace
 
+int ExtractionReduction(int cols, int rows) {
+  if (cols < kExtractWidth * 3 / 2) return 1;
+  int k = std::min(kMaxBoxFactor, static_cast<int>(std::lround(static_cast<double>(cols) / kExtractWidth)));
+  while (k > 1 && rows / k < 8) --k;
+  return k;
+}
+
+cv::Mat BlockMeans(const cv::Mat& bgr, int k) {
+  if (bgr.type() != CV_8UC3 || k < 2 || k > kMaxBoxFactor || bgr.rows < k || bgr.cols < k)
+    throw InvalidArgument("BlockMeans: an 8-bit BGR image at least k x k and k in [2, 257]");
+  cv::Mat out;
+  std::vector<uint16_t> sums;
+  BoxReduce(bgr, k, sums, out);
+  return out;
+}
+
 void SkylineOptions::Check() const {
   if (roll_hint_deg && !(std::abs(*roll_hint_deg) <= 45.0)) ThrowField("SkylineOptions::roll_hint_deg", *roll_hint_deg, "|roll| <= 45");
   if (max_work_width_px < 64) ThrowField("SkylineOptions::max_work_width_px", max_work_width_px, ">= 64");
@@ -631,6 +729,20 @@ Skyline ExtractSkyline(const cv::Mat& image, const SkylineOptions& options) {
   if (image.rows < 8 || image.cols < 8) return out;
 
   const cv::Mat bgr = ToBgr(image);
+  if (const int k = ExtractionReduction(bgr.cols, bgr.rows); k >= 2) {
+    Skyline up = MappedUp(ExtractSkyline(BlockMeans(bgr, k), options), k, image.cols, image.rows);
+    // At full size to within a fraction of a pixel: the edge each column
+    // was read at, and its raise to a fainter ridge above where that raise
+    // is within a reduced row (a row the edge half fills departs from the
+    // sky's colour: which part of it is terrain shows only at full size);
+    // a raise further up keeps its mapped row.
+    for (int x = 0; x < up.width; ++x) {
+      const double alt = up.Alt(x);
+      if (!std::isfinite(alt) || std::abs(alt - up.y[x]) <= k) up.y[x] = PolishedRow(bgr, k, x, up.y[x]);
+      if (std::isfinite(alt)) up.y_alt[x] = PolishedRow(bgr, k, x, alt);
+    }
+    return up;
+  }
 
   // Search at a bounded width.
   const double scale = std::min(1.0, static_cast<double>(options.max_work_width_px) / image.cols);

@@ -72,6 +72,18 @@ struct Skyline {
 // for its next call, so a video's frames do not fault in fresh memory.
 Skyline ExtractSkyline(const cv::Mat& image, const SkylineOptions& options);
 
+// The whole factor by which ExtractSkyline reduces an image `cols` x `rows`
+// before reading it (1: none): from 1.5 times 1024 columns on, the factor
+// that brings the width nearest 1024 (at least 8 rows kept). The
+// refinement's rows and thresholds are tuned at that width; a wider image's
+// edges spread over more rows. Boundaries scale back by the factor exactly.
+int ExtractionReduction(int cols, int rows);
+
+// The mean of each k x k block of an 8-bit BGR image, rounded (the last
+// < k rows and columns dropped: reduced pixel i covers full-size pixels
+// k i .. k i + k - 1). k in [2, 257]; throws InvalidArgument otherwise.
+cv::Mat BlockMeans(const cv::Mat& bgr, int k);
+
 // The skyline read again where a registered pose predicts it: `predicted`
 // is the DEM horizon projected at that pose (per column, NaN where none),
 // which a coarse DEM flattens, so that the true skyline lies up to

@@ -57,6 +57,60 @@ TEST(ExtractSkyline, LargeOddSizedImagesMapBackToFullSizeRows) {
   }
 }
 
+TEST(ExtractSkyline, WideImagesAreReadAtAbout1024Columns) {
+  EXPECT_EQ(ExtractionReduction(1024, 683), 1);
+  EXPECT_EQ(ExtractionReduction(1535, 1000), 1);
+  EXPECT_EQ(ExtractionReduction(1536, 1000), 2);
+  EXPECT_EQ(ExtractionReduction(3001, 2003), 3);
+  EXPECT_EQ(ExtractionReduction(4000, 3000), 4);
+  EXPECT_EQ(ExtractionReduction(6000, 4000), 6);
+  EXPECT_EQ(ExtractionReduction(4000, 20), 2);  // a thin strip keeps 8 rows
+  EXPECT_THROW(BlockMeans(cv::Mat(10, 10, CV_8UC3), 1), InvalidArgument);
+  EXPECT_THROW(BlockMeans(cv::Mat(10, 10, CV_8UC1), 2), InvalidArgument);
+  const cv::Mat m = BlockMeans(cv::Mat(10, 11, CV_8UC3, cv::Scalar(10, 20, 30)), 3);
+  EXPECT_EQ(m.cols, 3);
+  EXPECT_EQ(m.rows, 3);
+  EXPECT_EQ(m.at<cv::Vec3b>(2, 2), cv::Vec3b(10, 20, 30));
+}
+
+// A photo with 4x the pixels (a phone's 4000 columns against an archive's
+// 1000) spreads a hazy ridge's soft edge over 4x the rows: read at full
+// size, steps between neighbouring rows and colours 2-4 rows from the edge
+// fade. Read at its reduced size and placed at full size, it gives the
+// skyline of the smaller photo, scaled.
+TEST(ExtractSkyline, AnUpscaledPhotoGivesTheSameSkylineScaled) {
+  std::vector<double> truth;
+  cv::Mat img = SyntheticScene(1000, 660, truth);
+  for (int y = 0; y < img.rows; ++y)  // a hazy far ridge: a few delta E off the sky
+    for (int x = 0; x < img.cols; ++x)
+      if (y + 0.5 >= truth[x]) img.at<cv::Vec3b>(y, x) = cv::Vec3b(212, 178, 150);
+  cv::GaussianBlur(img, img, cv::Size(0, 0), 1.5);
+  {  // and the camera's noise (sigma 2 levels)
+    cv::Mat noise(img.size(), CV_16SC3);
+    cv::RNG rng(7);
+    rng.fill(noise, cv::RNG::NORMAL, 0.0, 2.0);
+    cv::Mat i16;
+    img.convertTo(i16, CV_16SC3);
+    i16 += noise;
+    i16.convertTo(img, CV_8UC3);
+  }
+  cv::Mat big;
+  cv::resize(img, big, cv::Size(), 4.0, 4.0, cv::INTER_CUBIC);
+  const Skyline small = ExtractSkyline(img, SkylineOptions{}), large = ExtractSkyline(big, SkylineOptions{});
+  ASSERT_EQ(large.width, 4000);
+  int small_good = 0, large_good = 0;
+  for (int x = 0; x < 1000; ++x) {
+    const double t = std::ceil(truth[x] - 0.5);
+    small_good += std::isfinite(small.y[x]) && std::abs(small.y[x] - t) <= 2.0;
+    for (int k = 0; k < 4; ++k) {
+      const double v = large.y[4 * x + k];
+      large_good += std::isfinite(v) && std::abs(v - 4.0 * t) <= 8.0;
+    }
+  }
+  EXPECT_GE(small_good, 950);
+  EXPECT_GE(large_good, 0.97 * 4 * small_good);  // read at full size: 3629 of 4000 (measured)
+}
+
 // Pixel noise of a high-ISO photo (sigma 8 levels per channel) must not pass
 // for the topmost clear step in the sky above a faint (hazy) ridge.
 TEST(ExtractSkyline, NoisySkyAboveAHazyRidgeIsNotTakenForTheSkyline) {
