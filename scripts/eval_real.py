@@ -41,6 +41,10 @@ Modes (each a per-photo table and a summary):
             (--agl 2 instead of --alt): a wrong position given without a
             height puts the eye on the DEM's ground there, hundreds of metres
             from the true eye (--floors ring-noalt=N)
+  ring-noalt-hfov  (not in the default set) the ring without the altitude
+            and with --hfov from the truth: a webcam listed with its
+            coordinates and opening angle, no height (--floors
+            ring-noalt-hfov=N; 2 false known, see the README)
   wrong-noexif  (not in the default set) the same probes with --no-exif
             (the opening angle unknown, 10-120 deg searched)
   noexif    (not in the default set) plain on the pixels alone: each photo
@@ -214,7 +218,8 @@ VARIANT_TITLES = {"": "", "camera": " with --camera", "initial": " with --initia
                   "sensors": " with --sensors 2 deg off the truth", "noexif": " with --no-exif",
                   "hfov": " with --hfov from the truth",
                   "range": " with --hfov-range +-20% around the truth",
-                  "noalt": " without the altitude (--agl 2: the eye 2 m above the DEM there)"}
+                  "noalt": " without the altitude (--agl 2: the eye 2 m above the DEM there)",
+                  "noalt-hfov": " without the altitude (--agl 2) and with --hfov from the truth"}
 
 
 def variant_files(variant, photos, tmpdir):
@@ -235,7 +240,7 @@ def variant_args(variant, name, t, i, files):
         return [f"--initial={t['yaw_deg'] + daz},{t['pitch_deg'] + dp},{t['roll_deg']},{t['hfov_deg']}"]
     if variant == "sensors":
         return ["--sensors", files[(name, i % len(INITIAL_OFFSETS))]]
-    if variant == "hfov":
+    if variant in ("hfov", "noalt-hfov"):
         return ["--hfov", repr(t["hfov_deg"])]
     if variant == "range":
         return ["--hfov-range", f"{0.8 * t['hfov_deg']:.2f}:{1.2 * t['hfov_deg']:.2f}"]
@@ -382,7 +387,7 @@ def main():
     jobs = int(opt("--jobs", "2"))
     floors = {"plain": 12, "camera": 12, "initial": 13, "skyline": 0.9, "thin": 0.9, "skyline-given": 0.95,
               "registered-skyline": 0.9, "registered-skyline-given": 0.95,
-              "thin-given": 0.95, "ring": 0, "ring-camera": 0, "ring-initial": 0, "ring-sensors": 0, "ring-noexif": 0, "ring-hfov": 0, "ring-range": 0, "ring-noalt": 0, "hfov": 12,
+              "thin-given": 0.95, "ring": 0, "ring-camera": 0, "ring-initial": 0, "ring-sensors": 0, "ring-noexif": 0, "ring-hfov": 0, "ring-range": 0, "ring-noalt": 0, "ring-noalt-hfov": 0, "hfov": 12,
               "sensors": 0, "noexif": 0, "reencode": 0, "gray": 0, "upscale2": 0, "upscale4": 0, "gray-skyline": 0.0}
     for kv in (opt("--floors") or "").split(","):
         if "=" in kv:
@@ -618,7 +623,8 @@ def main():
             print(f"probes: {len(out)}; registered (false): {len(bad)}; errors: {len(errs)}")
             if check and (bad or errs):
                 failed = True
-    for ring_mode in [m for m in ("ring", "ring-camera", "ring-initial", "ring-sensors", "ring-noexif", "ring-hfov", "ring-range", "ring-noalt")
+    for ring_mode in [m for m in ("ring", "ring-camera", "ring-initial", "ring-sensors", "ring-noexif", "ring-hfov", "ring-range", "ring-noalt",
+                                  "ring-noalt-hfov")
                       if m in modes]:
         variant = ring_mode.partition("-")[2]
         files = variant_files(variant, photos, tmpdir)
@@ -628,7 +634,7 @@ def main():
         def ring_probe(ix):
             i, ((name, t, d), b, dist, lat, lon) = ix
             return register(binary, shared, d, name, t, variant_args(variant, name, t, i, files), lat=lat, lon=lon,
-                            alt=variant != "noalt")
+                            alt=not variant.startswith("noalt"))
         out = list(pool.map(ring_probe, enumerate(probes)))
         print(f"\n== a ring of wrong positions: 12 bearings at 2, 3 and 5 km ({len(probes)} probes)"
               f"{VARIANT_TITLES[variant]} ==")

@@ -259,7 +259,10 @@ PositionCheck CheckPositionConsistency(const Site& site, const HorizonProfile& h
   // maps), and 14 of 36 true registrations have such a shallow first ring
   // (0.93-1.03; they pay the grid's time, about 1.1-1.5 s). So a hexagonal
   // grid of places over the disc, and the pattern again from its best.
-  const bool shallow = std::any_of(fitted.begin(), fitted.end(), [&](const Place& p) {
+  // Given no altitude and a known opening angle, the look is taken whatever
+  // the first ring (PositionCheckOptions::wide_when_unpinned).
+  const bool unpinned = co.wide_when_unpinned && !altitude_given && options.OpeningAngleKnown();
+  const bool shallow = unpinned || std::any_of(fitted.begin(), fitted.end(), [&](const Place& p) {
     return p.en.norm() > 1.0 && p.en.norm() <= co.first_step_m + 1.0 && p.cost < (1.0 + co.wide_trigger) * given.cost;
   });
   if (!refused() && shallow && co.wide_radius_m > co.first_step_m) {

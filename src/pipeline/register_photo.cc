@@ -385,16 +385,10 @@ std::optional<Registration> RecheckWithGuidedSkyline(const cv::Mat& image, const
   if (first.registered || !(first.focal_px > 0.0) || first.inlier_fraction < min_first_inliers ||
       !(first.model_rms_px <= max_first_rms * px_scale) || first.ambiguity_ratio < min_first_ambiguity)
     return std::nullopt;
-  const cv::Mat full = AsBgr(image);
-  if (full.type() != CV_8UC3 || full.cols != w || full.rows != h || static_cast<int>(skyline.y.size()) != w)
+  const cv::Mat bgr = AsBgr(image);
+  if (bgr.type() != CV_8UC3 || bgr.cols != w || bgr.rows != h || static_cast<int>(skyline.y.size()) != w)
     return std::nullopt;
-  // Rows are read where the skyline was extracted: a wide image reduced k
-  // times (ExtractionReduction; the real photos upscaled 2-4x re-read
-  // nothing at full size, their soft edges spread over the 3-row means).
-  const int red = ExtractionReduction(w, h);
-  const cv::Mat bgr = red > 1 ? BlockMeans(full, red) : full;
-  const int hr = bgr.rows;
-  auto mean3 = [&](int r0, int c) {  // mean BGR of rows r0 .. r0 + 2 (reduced)
+  auto mean3 = [&](int r0, int c) {  // mean BGR of rows r0 .. r0 + 2
     cv::Vec3d m(0, 0, 0);
     for (int r = r0; r < r0 + 3; ++r) m += cv::Vec3d(bgr.at<cv::Vec3b>(r, c));
     return m / 3.0;
@@ -418,17 +412,15 @@ std::optional<Registration> RecheckWithGuidedSkyline(const cv::Mat& image, const
     for (int c = 0; c < w; ++c) {
       const double p = pred[c], y = skyline.MatchY(c);
       if (!std::isfinite(p) || !std::isfinite(y) || y - p <= tau) continue;  // fits, lies above, or is hidden
-      // Boundaries between rows r - 1 and r, above the extracted one (reduced rows).
-      const double pr = p / red, yr0 = y / red, tr = tau / red;
-      const int cr = std::min(c / red, bgr.cols - 1);
-      const int lo = std::max(6, static_cast<int>(std::floor(pr - 2 * tr)));
+      // Boundaries between rows r - 1 and r, above the extracted one.
+      const int lo = std::max(6, static_cast<int>(std::floor(p - 2 * tau)));
       const int hi =
-          std::min({hr - 3, static_cast<int>(std::ceil(pr + 2 * tr)), static_cast<int>(std::floor(yr0 - tr))});
+          std::min({h - 3, static_cast<int>(std::ceil(p + 2 * tau)), static_cast<int>(std::floor(y - tau))});
       if (hi < lo) continue;
       const auto [r, yr, contrast] = StrongestStep(
-          lo, hi, [&](int row) { return cv::norm(mean3(row, cr) - mean3(row - 3, cr)); }, scores);
-      if (contrast < kMinStep || !(sky_above(r, 3, cr) || sky_above(r, 6, cr))) continue;
-      out.first.y[c] = yr * red;
+          lo, hi, [&](int row) { return cv::norm(mean3(row, c) - mean3(row - 3, c)); }, scores);
+      if (contrast < kMinStep || !(sky_above(r, 3, c) || sky_above(r, 6, c))) continue;
+      out.first.y[c] = yr;
       if (c < static_cast<int>(out.first.y_alt.size())) out.first.y_alt[c] = NAN;  // re-read: one candidate
       out.first.confidence[c] = std::min(1.0, contrast / (4.0 * kMinStep));
       ++out.second;

@@ -289,6 +289,38 @@ TEST(PositionCheck, PassesTheTruePositionAndRefusesOneTwoKilometresOff) {
   EXPECT_THROW(bad.Check(), InvalidArgument);
 }
 
+// Given no altitude (the ring's site stands 1.7 m over the ground) and a
+// known opening angle, the wide look is taken even where the first ring
+// shows a clear bowl; with an altitude, or with the opening angle searched,
+// it is not (wide_when_unpinned).
+TEST(PositionCheck, NoAltitudeAndAKnownOpeningAngleTakeTheWideLook) {
+  RenderedRing scene;
+  PhotoOptions po;
+  po.pinhole = true;
+  po.hfov_deg = 50.0;
+  const PhotoRegistration r = RegisterPhoto(scene.site, scene.photo, po, &scene.pool);
+  ASSERT_TRUE(r.registration.registered) << r.registration.message;
+  ASSERT_TRUE(r.options.OpeningAngleKnown());
+  ASSERT_TRUE(r.position_check.has_value());
+  EXPECT_TRUE(r.position_check->consistent);
+  EXPECT_GT(r.position_check->wide_places, 90);
+  PositionCheckOptions co;
+  co.wide_when_unpinned = false;
+  EXPECT_EQ(CheckPositionConsistency(scene.site, scene.site.horizon(), r.skyline, r.registration, r.options, co,
+                                     &scene.pool)
+                .wide_places,
+            0);
+  // The opening angle searched (10-120 deg): the first ring decides, as above.
+  RegistrationOptions wide = r.options;
+  wide.min_hfov_deg = 10.0;
+  wide.max_hfov_deg = 120.0;
+  EXPECT_FALSE(wide.OpeningAngleKnown());
+  EXPECT_EQ(CheckPositionConsistency(scene.site, scene.site.horizon(), r.skyline, r.registration, wide,
+                                     PositionCheckOptions{}, &scene.pool)
+                .wide_places,
+            0);
+}
+
 TEST(PositionCheck, TheWideLookReachesABowlThePatternCannot) {
   // From 2.5 km east of the truth with no far ring and no walk (the pattern
   // stops after the first ring, as it does where a wrong position sits in
