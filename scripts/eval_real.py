@@ -140,6 +140,35 @@ def offset_position(lat, lon, bearing_deg, dist_m):
     return lat + math.degrees(dlat), lon + math.degrees(dlon)
 
 
+def false_probe_list(photos, shared):
+    """The false-registration probes of each photo: (photo, label, dem, lat,
+    lon) from WRONG_OFFSETS (its own DEM: dem None, the altitude given) and
+    inside OTHER_DEMS present (dem named, no altitude)."""
+    probes = []
+    for p in photos:
+        for bearing, dist in WRONG_OFFSETS:
+            lat, lon = offset_position(p[1]["lat"], p[1]["lon"], bearing, dist)
+            probes.append((p, f"{dist / 1000:.0f} km at {bearing}", None, lat, lon))
+        for dem, lat, lon in OTHER_DEMS:
+            if os.path.exists(os.path.join(shared, "dem", dem)):
+                probes.append((p, dem, dem, lat, lon))
+    return probes
+
+
+def report_wrong(title, out):
+    """Prints the probes' (name, label, report) that registered or failed;
+    True when none did."""
+    print(f"\n== {title}: all must be no_match ==")
+    bad = [(n, l) for n, l, r in out if r.get("status") == "registered"]
+    errs = [(n, l, r.get("message")) for n, l, r in out if r.get("status") == "error"]
+    for n, l in bad:
+        print(f"  FALSE REGISTRATION: {n} from {l}")
+    for n, l, m in errs:
+        print(f"  error: {n} from {l}: {m}")
+    print(f"probes: {len(out)}; registered (false): {len(bad)}; errors: {len(errs)}")
+    return not bad and not errs
+
+
 def register(binary, shared, photo_dir, name, truth, extra, dem=None, lat=None, lon=None, alt=True, overlay=None,
              image=None):
     with tempfile.NamedTemporaryFile(suffix=".json") as tmp:
@@ -561,30 +590,14 @@ def main():
             continue
         variant = mode.partition("-")[2]
         files = variant_files(variant, photos, tmpdir)
-        probes = []
-        for p in photos:
-            for bearing, dist in WRONG_OFFSETS:
-                lat, lon = offset_position(p[1]["lat"], p[1]["lon"], bearing, dist)
-                probes.append((p, f"{dist / 1000:.0f} km at {bearing}", None, lat, lon, True))
-            for dem, lat, lon in OTHER_DEMS:
-                if os.path.exists(os.path.join(shared, "dem", dem)):
-                    probes.append((p, dem, dem, lat, lon, False))
 
         def probe(ix):
-            i, ((name, t, d), label, dem, lat, lon, alt) = ix
+            i, ((name, t, d), label, dem, lat, lon) = ix
             return name, label, register(binary, shared, d, name, t, variant_args(variant, name, t, i, files), dem=dem,
-                                         lat=lat, lon=lon, alt=alt)
-        out = list(pool.map(probe, enumerate(probes)))
-        print(f"\n== wrong position (2-10 km away) or another region's DEM{VARIANT_TITLES[variant]}: "
-              "all must be no_match ==")
-        bad = [(n, l, r.get("status")) for n, l, r in out if r.get("status") == "registered"]
-        errs = [(n, l, r.get("message")) for n, l, r in out if r.get("status") == "error"]
-        for n, l, s in bad:
-            print(f"  FALSE REGISTRATION: {n} from {l}")
-        for n, l, m in errs:
-            print(f"  error: {n} from {l}: {m}")
-        print(f"probes: {len(out)}; registered (false): {len(bad)}; errors: {len(errs)}")
-        if check and (bad or errs):
+                                         lat=lat, lon=lon, alt=dem is None)
+        out = list(pool.map(probe, enumerate(false_probe_list(photos, shared))))
+        if not report_wrong(f"wrong position (2-10 km away) or another region's DEM{VARIANT_TITLES[variant]}", out) \
+                and check:
             failed = True
     if "wrong-upscale4" in modes:
         # The wrong probes on the 4x copies: a wide photo read at its
@@ -598,30 +611,14 @@ def main():
             for name, t, d in photos:
                 copies[name] = os.path.join(tmpdir, name + ".wrong.x4.jpg")
                 write4(cv2, os.path.join(d, t["image"]), copies[name])
-            probes = []
-            for p in photos:
-                for bearing, dist in WRONG_OFFSETS:
-                    lat, lon = offset_position(p[1]["lat"], p[1]["lon"], bearing, dist)
-                    probes.append((p, f"{dist / 1000:.0f} km at {bearing}", None, lat, lon))
-                for dem, lat, lon in OTHER_DEMS:
-                    if os.path.exists(os.path.join(shared, "dem", dem)):
-                        probes.append((p, dem, dem, lat, lon))
 
             def probe4(pr):
                 (name, t, d), label, dem, lat, lon = pr
                 return name, label, register(binary, shared, d, name, t, [], dem=dem, lat=lat, lon=lon,
-                                             image=copies[name])
-            out = list(pool.map(probe4, probes))
-            print("\n== wrong position (2-10 km away) or another region's DEM, the photos upscaled 4x: "
-                  "all must be no_match ==")
-            bad = [(n, l) for n, l, r in out if r.get("status") == "registered"]
-            errs = [(n, l, r.get("message")) for n, l, r in out if r.get("status") == "error"]
-            for n, l in bad:
-                print(f"  FALSE REGISTRATION: {n} from {l}")
-            for n, l, m in errs:
-                print(f"  error: {n} from {l}: {m}")
-            print(f"probes: {len(out)}; registered (false): {len(bad)}; errors: {len(errs)}")
-            if check and (bad or errs):
+                                             alt=dem is None, image=copies[name])
+            out = list(pool.map(probe4, false_probe_list(photos, shared)))
+            if not report_wrong("wrong position (2-10 km away) or another region's DEM, the photos upscaled 4x", out) \
+                    and check:
                 failed = True
     for ring_mode in [m for m in ("ring", "ring-camera", "ring-initial", "ring-sensors", "ring-noexif", "ring-hfov", "ring-range", "ring-noalt",
                                   "ring-noalt-hfov")
@@ -667,14 +664,8 @@ def main():
                   f"{floors[ring_mode]:.0f}) or errors")
             failed = True
     if "perturbed" in modes:
-        def wrong_probes(p):
-            out = [(p, f"{dist / 1000:.0f} km at {bearing}", None, *offset_position(p[1]["lat"], p[1]["lon"], bearing,
-                                                                                   dist), True)
-                   for bearing, dist in WRONG_OFFSETS]
-            return out + [(p, dem, dem, lat, lon, False) for dem, lat, lon in OTHER_DEMS
-                          if os.path.exists(os.path.join(shared, "dem", dem))]
         runs = [(p, "truth", None, None, None, True, pe) for p in photos for pe in PERTURBATIONS]
-        runs += [w + (pe,) for p in photos for w in wrong_probes(p) for pe in PERTURBATIONS]
+        runs += [w + (w[2] is None, pe) for w in false_probe_list(photos, shared) for pe in PERTURBATIONS]
 
         def perturbed(x):
             (name, t, d), label, dem, lat, lon, alt, pe = x

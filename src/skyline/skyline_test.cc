@@ -24,6 +24,17 @@ cv::Mat SyntheticScene(int w, int h, std::vector<double>& truth) {
   return img;
 }
 
+// Gaussian pixel noise of `sigma` levels per channel (seeded: the same
+// noise every run).
+void AddNoise(cv::Mat& img, double sigma) {
+  cv::Mat noise(img.size(), CV_16SC3), wide;
+  cv::RNG rng(7);
+  rng.fill(noise, cv::RNG::NORMAL, 0.0, sigma);
+  img.convertTo(wide, CV_16SC3);
+  wide += noise;
+  wide.convertTo(img, CV_8UC3);
+}
+
 TEST(SkylineOptions, DefaultsAreValid) { EXPECT_NO_THROW(SkylineOptions{}.Check()); }
 
 TEST(ExtractSkyline, FindsASyntheticSkylineWithinAPixel) {
@@ -85,15 +96,7 @@ TEST(ExtractSkyline, AnUpscaledPhotoGivesTheSameSkylineScaled) {
     for (int x = 0; x < img.cols; ++x)
       if (y + 0.5 >= truth[x]) img.at<cv::Vec3b>(y, x) = cv::Vec3b(212, 178, 150);
   cv::GaussianBlur(img, img, cv::Size(0, 0), 1.5);
-  {  // and the camera's noise (sigma 2 levels)
-    cv::Mat noise(img.size(), CV_16SC3);
-    cv::RNG rng(7);
-    rng.fill(noise, cv::RNG::NORMAL, 0.0, 2.0);
-    cv::Mat i16;
-    img.convertTo(i16, CV_16SC3);
-    i16 += noise;
-    i16.convertTo(img, CV_8UC3);
-  }
+  AddNoise(img, 2.0);  // and the camera's noise
   cv::Mat big;
   cv::resize(img, big, cv::Size(), 4.0, 4.0, cv::INTER_CUBIC);
   const Skyline small = ExtractSkyline(img, SkylineOptions{}), large = ExtractSkyline(big, SkylineOptions{});
@@ -119,13 +122,7 @@ TEST(ExtractSkyline, NoisySkyAboveAHazyRidgeIsNotTakenForTheSkyline) {
   for (int y = 0; y < img.rows; ++y)  // a hazy far ridge: terrain only a little darker and greyer than the sky
     for (int x = 0; x < img.cols; ++x)
       if (y + 0.5 >= truth[x]) img.at<cv::Vec3b>(y, x) = cv::Vec3b(205, 180, 160);
-  cv::Mat noise(img.size(), CV_16SC3);
-  cv::RNG rng(7);
-  rng.fill(noise, cv::RNG::NORMAL, 0.0, 8.0);
-  cv::Mat noisy;
-  img.convertTo(noisy, CV_16SC3);
-  noisy += noise;
-  noisy.convertTo(img, CV_8UC3);
+  AddNoise(img, 8.0);
   const Skyline s = ExtractSkyline(img, SkylineOptions{});
   int good = 0, given = 0;
   for (int x = 0; x < 1024; ++x) {
