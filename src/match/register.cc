@@ -152,10 +152,9 @@ bool ByCost(const Candidate& x, const Candidate& y) {
 // Hypotheses kept after scoring (the refinement draws its distinct
 // candidates from these).
 constexpr size_t kKeptHypotheses = 64;
-// A window of opening angles narrower than this ratio (max / min) refines
-// each candidate from more starts, its focal length this factor longer and
-// shorter (Register, multi_start).
-constexpr double kNarrowHfovWindow = 1.12;
+// A narrow window of opening angles (RegistrationOptions::NarrowHfovWindow)
+// refines each candidate from more starts, its focal length this factor
+// longer and shorter (Register, multi_start).
 constexpr double kFocalStartFactor = 1.03;
 // Longest gap in the skyline bridged for finding its peaks and dips, as a
 // share of the width.
@@ -552,8 +551,7 @@ Registration Register(const Skyline& skyline, const HorizonProfile& horizon, con
   // register 164 deg off. So each candidate is also refined from its focal
   // length 3% longer and shorter, the least cost kept
   // (RegistrationOptions::narrow_window_restarts).
-  const bool multi_start = !frame.known() && options.narrow_window_restarts &&
-                           options.max_hfov_deg < kNarrowHfovWindow * options.min_hfov_deg;
+  const bool multi_start = !frame.known() && options.narrow_window_restarts && options.NarrowHfovWindow();
   // A refined pose is kept inside the priors and (near) the window of opening angles.
   auto admitted = [&](const Pose4& q) {
     if (!WithinPrior(options, q.ToPose())) return false;

@@ -113,10 +113,13 @@ struct RegistrationOptions {
   // which then cost what they did, not three times as much.
   bool narrow_window_restarts = true;
   void Check() const;  // Throws InvalidArgument naming the field.
+  // Whether the window of opening angles is narrow: max / min < 1.12 (a
+  // known --hfov, --initial's +-5%).
+  bool NarrowHfovWindow() const { return max_hfov_deg < 1.12 * min_hfov_deg; }
   // Whether the opening angle is as good as known: known intrinsics, or a
-  // window narrower than 12% (a known --hfov, --initial's +-5%). Then no
-  // rival at another opening angle can refuse a wrong pose.
-  bool OpeningAngleKnown() const { return known_intrinsics.has_value() || max_hfov_deg < 1.12 * min_hfov_deg; }
+  // narrow window. Then no rival at another opening angle can refuse a
+  // wrong pose.
+  bool OpeningAngleKnown() const { return known_intrinsics.has_value() || NarrowHfovWindow(); }
   // Whether `informative_columns` (Registration::informative_columns) of a
   // skyline `width` columns wide are enough to tell the pose.
   bool TellsThePose(double informative_columns, int width) const {
