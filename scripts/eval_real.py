@@ -70,6 +70,17 @@ Modes (each a per-photo table and a summary):
             within 0.5 deg (--floors upscale2=N, upscale4=N, default 0) and the
             false ones (0)
   wrong-upscale4  (not in the default set) the wrong probes on the 4x copies
+  jpeg50, jpeg30  (not in the default set) plain on each photo re-encoded
+            as JPEG at quality 50 or 30 (EXIF kept): a webcam's or a web
+            page's copy, whose smooth sky comes in flat 8 x 8 blocks and
+            16 x 16 chroma blocks with steps between them. Counts the photos
+            within 0.5 deg (--floors jpeg50=N, jpeg30=N, default 0) and the
+            false ones (0)
+  wrong-jpeg30  (not in the default set) the wrong probes on the quality-30
+            copies
+  jpeg30-skyline  (not in the default set; seconds) the skyline of the
+            quality-30 copies against the hand trace, as skyline (--floors
+            jpeg30-skyline=F)
   gray-skyline  (not in the default set; seconds) the skyline of the grey
             copies against the hand trace, as skyline (--floors
             gray-skyline=F, a share of the traced columns within 2 px)
@@ -331,19 +342,21 @@ def pose_table(title, rows, tol):
     return len(good), len(false), med("daz"), med("dp")
 
 
-def skyline_table(binary, photos, thin_sky_px=None, shared=None, grey=False):
+def skyline_table(binary, photos, thin_sky_px=None, shared=None, grey=False, jpeg_quality=None):
     """Per photo and in all: the traced columns given a value and within 2 px.
     With thin_sky_px, each photo is first cropped from the top to leave that
     many rows above the traced horizon's highest point (the trace shifted
     with it). With shared (the registered mode), the skyline is the one
     `register --skyline-out` writes, the photo registered with no prior:
     read again near the DEM horizon where registered. With grey, the skyline
-    of each photo's grey copy (luma, JPEG quality 95)."""
-    if grey:
-        cv2 = opencv_for("gray-skyline")
+    of each photo's grey copy (luma, JPEG quality 95). With jpeg_quality, of
+    each photo re-encoded as JPEG at that quality."""
+    if grey or jpeg_quality:
+        cv2 = opencv_for("gray-skyline" if grey else f"jpeg{jpeg_quality}-skyline")
         if cv2 is None:
             return float("nan"), float("nan")
-        print("\n== skyline of the grey copies against the hand-traced horizon (traced columns only) ==")
+        what = "grey copies" if grey else f"copies at JPEG quality {jpeg_quality}"
+        print(f"\n== skyline of the {what} against the hand-traced horizon (traced columns only) ==")
     elif shared is not None:
         print("\n== register --skyline-out against the hand-traced horizon (traced columns only) ==")
     elif thin_sky_px is None:
@@ -374,6 +387,10 @@ def skyline_table(binary, photos, thin_sky_px=None, shared=None, grey=False):
                 luma = cv2.imread(image, cv2.IMREAD_GRAYSCALE)
                 image = os.path.join(tmp, "grey.jpg")
                 cv2.imwrite(image, luma, [cv2.IMWRITE_JPEG_QUALITY, 95])
+            if jpeg_quality:
+                colour = cv2.imread(image)
+                image = os.path.join(tmp, "compressed.jpg")
+                cv2.imwrite(image, colour, [cv2.IMWRITE_JPEG_QUALITY, jpeg_quality])
             if shared is not None:
                 r = register(binary, shared, photo_dir, name, t, ["--skyline-out", os.path.join(tmp, "s.json")])
                 if r["status"] == "error":
@@ -417,7 +434,8 @@ def main():
     floors = {"plain": 12, "camera": 12, "initial": 13, "skyline": 0.9, "thin": 0.9, "skyline-given": 0.95,
               "registered-skyline": 0.9, "registered-skyline-given": 0.95,
               "thin-given": 0.95, "ring": 0, "ring-camera": 0, "ring-initial": 0, "ring-sensors": 0, "ring-noexif": 0, "ring-hfov": 0, "ring-range": 0, "ring-noalt": 0, "ring-noalt-hfov": 0, "hfov": 12,
-              "sensors": 0, "noexif": 0, "reencode": 0, "gray": 0, "upscale2": 0, "upscale4": 0, "gray-skyline": 0.0}
+              "sensors": 0, "noexif": 0, "reencode": 0, "gray": 0, "upscale2": 0, "upscale4": 0, "jpeg50": 0, "jpeg30": 0, "gray-skyline": 0.0,
+              "jpeg30-skyline": 0.0}
     for kv in (opt("--floors") or "").split(","):
         if "=" in kv:
             k, v = kv.split("=")
@@ -499,9 +517,9 @@ def main():
     def without_exif(cv2, source, path):
         return cv2.imwrite(path, cv2.imread(source))
 
-    def jpeg_copy(cv2, source, path, grey=False):
+    def jpeg_copy(cv2, source, path, grey=False, quality=95):
         image = cv2.imread(source, cv2.IMREAD_GRAYSCALE if grey else cv2.IMREAD_COLOR)
-        ok, data = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, 95])
+        ok, data = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, quality])
         if ok:
             with open(path, "wb") as f:
                 f.write(with_exif_of(open(source, "rb").read(), data.tobytes()))
@@ -512,6 +530,9 @@ def main():
 
     def grey(cv2, source, path):
         return jpeg_copy(cv2, source, path, grey=True)
+
+    def compressed(quality):
+        return lambda cv2, source, path: jpeg_copy(cv2, source, path, quality=quality)
 
     def upscaled(factor):
         def write(cv2, source, path):
@@ -528,7 +549,9 @@ def main():
             ("reencode", ".q95.jpg", "no prior, re-encoded as JPEG quality 95 (EXIF kept)", reencoded),
             ("gray", ".gray.jpg", "no prior, grey (luma only, JPEG quality 95, EXIF kept)", grey),
             ("upscale2", ".x2.jpg", "no prior, upscaled 2x (bicubic, JPEG quality 95, EXIF kept)", upscaled(2)),
-            ("upscale4", ".x4.jpg", "no prior, upscaled 4x (bicubic, JPEG quality 95, EXIF kept)", upscaled(4))):
+            ("upscale4", ".x4.jpg", "no prior, upscaled 4x (bicubic, JPEG quality 95, EXIF kept)", upscaled(4)),
+            ("jpeg50", ".q50.jpg", "no prior, re-encoded as JPEG quality 50 (EXIF kept)", compressed(50)),
+            ("jpeg30", ".q30.jpg", "no prior, re-encoded as JPEG quality 30 (EXIF kept)", compressed(30))):
         if mode not in modes:
             continue
         cv2 = opencv_for(mode)
@@ -575,6 +598,11 @@ def main():
         if check and not w >= floors["gray-skyline"]:
             print("FAIL: the grey copies' skyline accuracy misses its floor")
             failed = True
+    if "jpeg30-skyline" in modes:
+        w, _ = skyline_table(binary, photos, jpeg_quality=30)
+        if check and not w >= floors["jpeg30-skyline"]:
+            print("FAIL: the quality-30 copies' skyline accuracy misses its floor")
+            failed = True
     if "skyline" in modes:
         w, g = skyline_table(binary, photos)
         if check and (w < floors["skyline"] or g < floors["skyline-given"]):
@@ -599,27 +627,30 @@ def main():
         if not report_wrong(f"wrong position (2-10 km away) or another region's DEM{VARIANT_TITLES[variant]}", out) \
                 and check:
             failed = True
-    if "wrong-upscale4" in modes:
-        # The wrong probes on the 4x copies: a wide photo read at its
-        # reduced size must refuse a wrong position as the photo does.
-        cv2 = opencv_for("wrong-upscale4")
+    # The wrong probes on altered copies: a wide photo read at its reduced
+    # size, a strongly compressed one, must refuse a wrong position as the
+    # photo does.
+    for mode, suffix, what, write in (("wrong-upscale4", ".wrong.x4.jpg", "the photos upscaled 4x", upscaled(4)),
+                                      ("wrong-jpeg30", ".wrong.q30.jpg", "the photos as JPEG quality 30",
+                                       compressed(30))):
+        if mode not in modes:
+            continue
+        cv2 = opencv_for(mode)
         if cv2 is None:
             failed = failed or check
-        else:
-            write4 = upscaled(4)
-            copies = {}
-            for name, t, d in photos:
-                copies[name] = os.path.join(tmpdir, name + ".wrong.x4.jpg")
-                write4(cv2, os.path.join(d, t["image"]), copies[name])
+            continue
+        copies = {}
+        for name, t, d in photos:
+            copies[name] = os.path.join(tmpdir, name + suffix)
+            write(cv2, os.path.join(d, t["image"]), copies[name])
 
-            def probe4(pr):
-                (name, t, d), label, dem, lat, lon = pr
-                return name, label, register(binary, shared, d, name, t, [], dem=dem, lat=lat, lon=lon,
-                                             alt=dem is None, image=copies[name])
-            out = list(pool.map(probe4, false_probe_list(photos, shared)))
-            if not report_wrong("wrong position (2-10 km away) or another region's DEM, the photos upscaled 4x", out) \
-                    and check:
-                failed = True
+        def probe_copy(pr):
+            (name, t, d), label, dem, lat, lon = pr
+            return name, label, register(binary, shared, d, name, t, [], dem=dem, lat=lat, lon=lon,
+                                         alt=dem is None, image=copies[name])
+        out = list(pool.map(probe_copy, false_probe_list(photos, shared)))
+        if not report_wrong(f"wrong position (2-10 km away) or another region's DEM, {what}", out) and check:
+            failed = True
     for ring_mode in [m for m in ("ring", "ring-camera", "ring-initial", "ring-sensors", "ring-noexif", "ring-hfov", "ring-range", "ring-noalt",
                                   "ring-noalt-hfov")
                       if m in modes]:
