@@ -525,9 +525,6 @@ def main():
                 f.write(with_exif_of(open(source, "rb").read(), data.tobytes()))
         return ok
 
-    def reencoded(cv2, source, path):
-        return jpeg_copy(cv2, source, path)
-
     def grey(cv2, source, path):
         return jpeg_copy(cv2, source, path, grey=True)
 
@@ -546,7 +543,7 @@ def main():
         return write
     for mode, suffix, title, write in (
             ("noexif", ".noexif.png", "no prior, no EXIF (the pixels alone, as PNG)", without_exif),
-            ("reencode", ".q95.jpg", "no prior, re-encoded as JPEG quality 95 (EXIF kept)", reencoded),
+            ("reencode", ".q95.jpg", "no prior, re-encoded as JPEG quality 95 (EXIF kept)", compressed(95)),
             ("gray", ".gray.jpg", "no prior, grey (luma only, JPEG quality 95, EXIF kept)", grey),
             ("upscale2", ".x2.jpg", "no prior, upscaled 2x (bicubic, JPEG quality 95, EXIF kept)", upscaled(2)),
             ("upscale4", ".x4.jpg", "no prior, upscaled 4x (bicubic, JPEG quality 95, EXIF kept)", upscaled(4)),
