@@ -53,6 +53,14 @@ Modes (each a per-photo table and a summary):
             webcam frame, a scan or a stripped upload. Counts the photos within
             0.5 deg (--floors noexif=N, default 0) and the false registrations
             (must be 0)
+  crop      (not in the default set; seconds) plain on each photo cropped
+            to 3/4 of its width (the left part for every other photo, the
+            right for the rest; JPEG quality 95, EXIF kept: its recorded size
+            no longer the photo's shape, as a photographer's crop leaves it).
+            The truth is the ray through the crop's centre by the author's
+            full camera model. Counts the photos within 0.5 deg (--floors
+            crop=N) and the false ones (0)
+  wrong-crop  (not in the default set) the wrong probes on those crops
   reencode  (not in the default set) plain on each photo decoded and saved
             again as JPEG at quality 95 with its EXIF segment kept: the
             pixels change by ~0.2 grey levels on average (an upload, an
@@ -287,6 +295,46 @@ def variant_args(variant, name, t, i, files):
     return ["--no-exif"] if variant == "noexif" else []
 
 
+def ray_through(cv2, truth, u, v):
+    """Azimuth and elevation (degrees) of the ray through pixel (u, v) (the
+    origin at the top-left corner of the top-left pixel) by the truth's full
+    camera model: its intrinsics and distortion, its optical axis and roll
+    (right side down positive)."""
+    import numpy as np
+    c = truth["camera"]
+    k = list(c["k"]) + [0.0] * (6 - len(c["k"]))
+    matrix = np.array([[c["fx_px"], 0, c["cx_px"]], [0, c["fy_px"], c["cy_px"]], [0, 0, 1]], float)
+    dist = np.array([k[0], k[1], c["p"][0], c["p"][1], k[2], k[3], k[4], k[5]], float)
+    x, y = cv2.undistortPointsIter(np.array([[[u, v]]], float), matrix, dist, None, None,
+                                   (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-12))[0, 0]
+    az, p, r = (math.radians(a) for a in (c["axis_yaw_deg"], c["axis_pitch_deg"], truth["roll_deg"]))
+    forward = np.array([math.sin(az) * math.cos(p), math.cos(az) * math.cos(p), math.sin(p)])
+    right = np.array([math.cos(az), -math.sin(az), 0.0])
+    down = -np.cross(right, forward)
+    d = x * (math.cos(r) * right + math.sin(r) * down) + y * (math.cos(r) * down - math.sin(r) * right) + forward
+    d /= np.linalg.norm(d)
+    return math.degrees(math.atan2(d[0], d[1])) % 360.0, math.degrees(math.asin(d[2]))
+
+
+def cropped_copy(cv2, truth, source, path, keep_right, share=0.75):
+    """The photo cropped to `share` of its width (its right part or its left),
+    JPEG quality 95 with its EXIF kept, and the truth of the crop: the ray
+    through its centre, its opening angle. None when it cannot be written."""
+    image = cv2.imread(source)
+    h, w = image.shape[:2]
+    kept = int(round(w * share))
+    x0 = w - kept if keep_right else 0
+    ok, data = cv2.imencode(".jpg", image[:, x0:x0 + kept], [cv2.IMWRITE_JPEG_QUALITY, 95])
+    if not ok:
+        return None
+    with open(path, "wb") as f:
+        f.write(with_exif_of(open(source, "rb").read(), data.tobytes()))
+    t = dict(truth)
+    t["yaw_deg"], t["pitch_deg"] = ray_through(cv2, truth, x0 + kept / 2.0, h / 2.0)
+    t["hfov_deg"] = math.degrees(2.0 * math.atan(kept / (2.0 * truth["camera"]["fx_px"])))
+    return t
+
+
 def traced_file(truth, path):
     json.dump({"width": truth["width"], "height": truth["height"], "y": truth["skyline_row"]}, open(path, "w"))
 
@@ -434,7 +482,7 @@ def main():
     floors = {"plain": 12, "camera": 12, "initial": 13, "skyline": 0.9, "thin": 0.9, "skyline-given": 0.95,
               "registered-skyline": 0.9, "registered-skyline-given": 0.95,
               "thin-given": 0.95, "ring": 0, "ring-camera": 0, "ring-initial": 0, "ring-sensors": 0, "ring-noexif": 0, "ring-hfov": 0, "ring-range": 0, "ring-noalt": 0, "ring-noalt-hfov": 0, "hfov": 12,
-              "sensors": 0, "noexif": 0, "reencode": 0, "gray": 0, "upscale2": 0, "upscale4": 0, "jpeg50": 0, "jpeg30": 0, "gray-skyline": 0.0,
+              "sensors": 0, "noexif": 0, "reencode": 0, "gray": 0, "upscale2": 0, "upscale4": 0, "jpeg50": 0, "jpeg30": 0, "crop": 0, "gray-skyline": 0.0,
               "jpeg30-skyline": 0.0}
     for kv in (opt("--floors") or "").split(","):
         if "=" in kv:
@@ -565,6 +613,36 @@ def main():
         if check and (good < floors[mode] or false):
             print(f"FAIL: --modes {mode} misses its floor or has a false registration")
             failed = True
+    # Cropped copies (the crop's own truth) and the wrong probes on them.
+    if "crop" in modes or "wrong-crop" in modes:
+        cv2 = opencv_for("crop")
+        crops = {}
+        for i, (name, t, d) in enumerate(photos if cv2 else []):
+            path = os.path.join(tmpdir, name + ".crop.jpg")
+            crops[name] = (path, cropped_copy(cv2, t, os.path.join(d, t["image"]), path, keep_right=i % 2 == 1))
+        if cv2 is None or not all(ct for _, ct in crops.values()):
+            print("FAIL: cannot write the cropped copies")
+            failed = True
+        else:
+            if "crop" in modes:
+                def crop_of(p):
+                    path, ct = crops[p[0]]
+                    return p[0], ct, register(binary, shared, p[2], p[0], ct, [], image=path)
+                good, false, _, _ = pose_table("no prior, cropped to 3/4 of the width (EXIF kept)",
+                                               run_all(crop_of), 0.5)
+                if check and (good < floors["crop"] or false):
+                    print("FAIL: --modes crop misses its floor or has a false registration")
+                    failed = True
+            if "wrong-crop" in modes:
+                def probe_crop(pr):
+                    (name, t, d), label, dem, lat, lon = pr
+                    path, ct = crops[name]
+                    return name, label, register(binary, shared, d, name, ct, [], dem=dem, lat=lat, lon=lon,
+                                                 alt=dem is None, image=path)
+                out = list(pool.map(probe_crop, false_probe_list(photos, shared)))
+                if not report_wrong("wrong position (2-10 km away) or another region's DEM, the cropped copies",
+                                    out) and check:
+                    failed = True
     if "traced" in modes:
         def traced(p):
             if not any(y is not None for y in p[1]["skyline_row"]):

@@ -114,9 +114,11 @@ std::string PhotoHfovWindow(const PhotoOptions& po, int width, int height, doubl
     return "--hfov-range";
   }
   if (po.exif.focal_35mm) {
-    const double h = HfovFromFocal35mm(*po.exif.focal_35mm, width, height);
+    const Frame35mm frame = FrameOf(width, height, po.exif.recorded_width_px, po.exif.recorded_height_px);
+    const double h = HfovFromFocal35mm(*po.exif.focal_35mm, width, frame);
     min_deg = std::max(1.0, h * 0.9), max_deg = std::min(169.0, h * 1.1);
-    return po.exif.focal_35mm_from_crop_factor ? "exif-crop-factor" : "exif";
+    return std::string(po.exif.focal_35mm_from_crop_factor ? "exif-crop-factor" : "exif") +
+           (frame.cropped ? "-cropped" : "");
   }
   return "default";
 }

@@ -73,7 +73,7 @@ struct PhotoRegistration {
   Registration registration;
   Skyline skyline;
   RegistrationOptions options;  // as used: priors, opening-angle window
-  std::string fov_source;       // "--hfov", "--hfov-range", "exif", "exif-crop-factor" or "default"
+  std::string fov_source;       // "--hfov", "--hfov-range", "exif", "exif-crop-factor" (either with "-cropped": sensors.h FrameOf) or "default"
   int width = 0, height = 0;
   double skyline_ms = 0.0, match_ms = 0.0;
   // With PhotoOptions::refine_position: the position estimate (its horizon

@@ -108,6 +108,12 @@ SensorReading ReadExif(const std::string& image_path) {
     const auto dir_ref = Text(exif, "Exif.GPSInfo.GPSImgDirectionRef");
     if (dir && std::isfinite(*dir) && (!dir_ref || dir_ref->empty() || (*dir_ref)[0] == 'T'))
       r.compass_deg = WrapAzimuthDeg(*dir);
+    for (const auto& [key, field] : {std::pair{"Exif.Photo.PixelXDimension", &r.recorded_width_px},
+                                     std::pair{"Exif.Photo.PixelYDimension", &r.recorded_height_px}}) {
+      const auto it = exif.findKey(Exiv2::ExifKey(key));
+      if (it != exif.end() && it->count() > 0 && it->toLong() > 0 && it->toLong() < 1000000)
+        *field = static_cast<int>(it->toLong());
+    }
     const auto f35 = exif.findKey(Exiv2::ExifKey("Exif.Photo.FocalLengthIn35mmFilm"));
     if (f35 != exif.end() && f35->count() > 0 && f35->toLong() > 0) {
       r.focal_35mm = static_cast<double>(f35->toLong());
@@ -358,9 +364,26 @@ std::optional<SensorCalibration> SensorCalibrator::Estimate() const {
 }
 
 double HfovFromFocal35mm(double focal_35mm, int width, int height) {
+  return HfovFromFocal35mm(focal_35mm, width, Frame35mm{static_cast<double>(width), static_cast<double>(height)});
+}
+
+Frame35mm FrameOf(int width, int height, std::optional<int> recorded_width_px, std::optional<int> recorded_height_px) {
+  constexpr double kShapeTolerance = 0.015;  // rounding a resized photo's sides stays far below
+  Frame35mm f{static_cast<double>(width), static_cast<double>(height), false};
+  if (!recorded_width_px || !recorded_height_px || *recorded_width_px <= 0 || *recorded_height_px <= 0 ||
+      width <= 0 || height <= 0)
+    return f;
+  double rw = *recorded_width_px, rh = *recorded_height_px;
+  if ((rw > rh) != (width > height) && rw != rh && width != height) std::swap(rw, rh);  // turned (EXIF orientation)
+  if (std::abs((width / static_cast<double>(height)) / (rw / rh) - 1.0) <= kShapeTolerance) return f;
+  const double scale = std::max(width / rw, height / rh);
+  return Frame35mm{rw * scale, rh * scale, true};
+}
+
+double HfovFromFocal35mm(double focal_35mm, int width, const Frame35mm& frame) {
   const double half_diag = 0.5 * std::hypot(36.0, 24.0);
   const double tan_half_diag = half_diag / focal_35mm;
-  return RadToDeg(2.0 * std::atan(tan_half_diag * width / std::hypot(width, height)));
+  return RadToDeg(2.0 * std::atan(tan_half_diag * width / std::hypot(frame.width, frame.height)));
 }
 
 }  // namespace horizonreg

@@ -21,6 +21,10 @@ struct SensorReading {
   // Set when focal_35mm is EXIF FocalLength times the body's crop factor
   // (camera_db.h), the photo giving no 35 mm equivalent of its own.
   bool focal_35mm_from_crop_factor = false;
+  // EXIF PixelXDimension x PixelYDimension: the size the camera (or the last
+  // program that rewrote the file) recorded; a photo cropped since shows
+  // another shape than its pixels.
+  std::optional<int> recorded_width_px, recorded_height_px;
 };
 
 // Parses one reading from JSON text: fields compass_yaw_deg,
@@ -44,6 +48,25 @@ SensorReading ReadExif(const std::string& image_path);
 // 35 mm-equivalent focal length (CIPA: the equivalence holds on the diagonal,
 // 43.27 mm for full frame).
 double HfovFromFocal35mm(double focal_35mm, int width, int height);
+
+// The frame a 35 mm-equivalent focal length refers to, in a width x height
+// image's pixels. When the recorded EXIF size (recorded_width_px x
+// recorded_height_px, either way round: a portrait photo is turned) has the
+// image's shape or is absent, the image itself. When its shape differs by
+// more than 1.5%, the photo was cropped after it was taken (a photographer's
+// or a web page's framing: the diagonal the equivalence holds on is the
+// camera's, not the crop's): the recorded size scaled so that the side kept
+// most is whole (a crop of one side is then exact; a crop of both still
+// reads the opening angle too wide by the other side's crop).
+struct Frame35mm {
+  double width = 0.0, height = 0.0;
+  bool cropped = false;
+};
+Frame35mm FrameOf(int width, int height, std::optional<int> recorded_width_px,
+                  std::optional<int> recorded_height_px);
+
+// The opening angle of the image over its frame (FrameOf).
+double HfovFromFocal35mm(double focal_35mm, int width, const Frame35mm& frame);
 
 // One row of a per-frame sensor log.
 struct SensorLogEntry {

@@ -55,11 +55,16 @@ TEST(ReadExif, GpsDirectionAndFocalRoundTrip) {
     exif["Exif.GPSInfo.GPSImgDirectionRef"] = "T";
     exif["Exif.GPSInfo.GPSImgDirection"] = Exiv2::Rational(3465, 20);
     exif["Exif.Photo.FocalLengthIn35mmFilm"] = uint16_t(50);
+    exif["Exif.Photo.PixelXDimension"] = uint32_t(6000);
+    exif["Exif.Photo.PixelYDimension"] = uint32_t(4000);
     image->writeMetadata();
   }
   const SensorReading r = ReadExif(path.string());
   std::filesystem::remove(path);
   ASSERT_TRUE(r.lat_deg && r.lon_deg && r.alt_m && r.compass_deg && r.focal_35mm);
+  ASSERT_TRUE(r.recorded_width_px && r.recorded_height_px);
+  EXPECT_EQ(*r.recorded_width_px, 6000);
+  EXPECT_EQ(*r.recorded_height_px, 4000);
   EXPECT_NEAR(*r.lat_deg, 46 + 14 / 60.0 + 23.64 / 3600, 1e-9);
   EXPECT_NEAR(*r.lon_deg, -(121 + 31 / 60.0 + 23.04 / 3600), 1e-9);
   EXPECT_NEAR(*r.alt_m, 2105.9, 1e-9);
@@ -140,6 +145,37 @@ TEST(ReadExif, NoMetadataOrNotAnImageGivesAnEmptyReading) {
 TEST(HfovFromFocal35mm, FullFrameFiftyMillimetres) {
   // 36 x 24 mm frame at 50 mm: horizontal 39.6 deg.
   EXPECT_NEAR(HfovFromFocal35mm(50.0, 3000, 2000), 39.598, 0.01);
+}
+
+TEST(FrameOf, ACropOfOneSideKeepsTheCamerasFrame) {
+  // Resized only (or no recorded size, or a recorded size of the same
+  // shape): the image is the frame, as before.
+  for (const auto& [rw, rh] : {std::pair{6000, 4000}, std::pair{6001, 4000}, std::pair{0, 0}}) {
+    const Frame35mm f = FrameOf(1500, 1000, rw > 0 ? std::optional<int>(rw) : std::nullopt,
+                                rh > 0 ? std::optional<int>(rh) : std::nullopt);
+    EXPECT_FALSE(f.cropped);
+    EXPECT_DOUBLE_EQ(f.width, 1500.0);
+    EXPECT_DOUBLE_EQ(f.height, 1000.0);
+  }
+  // 3/4 of the width of a 6000 x 4000 photo resized to 1125 x 1000: the
+  // frame is 1500 x 1000 and the opening angle 3/4 of the frame's in tan.
+  const Frame35mm f = FrameOf(1125, 1000, 6000, 4000);
+  EXPECT_TRUE(f.cropped);
+  EXPECT_NEAR(f.width, 1500.0, 1e-9);
+  EXPECT_NEAR(f.height, 1000.0, 1e-9);
+  const double full = HfovFromFocal35mm(50.0, 1500, 1000);
+  EXPECT_NEAR(std::tan(HfovFromFocal35mm(50.0, 1125, f) * kPi / 360.0), 0.75 * std::tan(full * kPi / 360.0), 1e-12);
+  // The same crop of a portrait photo (the recorded size is the sensor's,
+  // landscape; the decoded image is turned): the frame is portrait too.
+  const Frame35mm p = FrameOf(1000, 1125, 6000, 4000);
+  EXPECT_TRUE(p.cropped);
+  EXPECT_NEAR(p.width, 1000.0, 1e-9);
+  EXPECT_NEAR(p.height, 1500.0, 1e-9);
+  // A letterbox (16:9 from 3:2): the width is whole.
+  const Frame35mm l = FrameOf(1920, 1080, 6000, 4000);
+  EXPECT_TRUE(l.cropped);
+  EXPECT_NEAR(l.width, 1920.0, 1e-9);
+  EXPECT_NEAR(l.height, 1280.0, 1e-9);
 }
 
 }  // namespace
