@@ -224,6 +224,30 @@ TEST(Register, RecoversASyntheticPoseWithoutPriors) {
   }
 }
 
+// A crop of a wide view (the camera's centre 150 px right of the image's):
+// registered as centred, the centre ray is off; RefinePrincipalColumn finds
+// the camera's centre and the centre ray. Without a range it does nothing.
+TEST(RefinePrincipalColumn, FindsTheCentreOfACroppedCamera) {
+  const HorizonProfile p = SyntheticHorizon(0.1);
+  CameraIntrinsics k = CameraIntrinsics::FromHfov(800, 600, 55.0);
+  k.cx_px += 150.0;
+  const CameraPose axis{123.4, 1.0, 1.5};
+  const CameraPose truth = CenterRayPose(axis, k);
+  const Skyline sky = SkylineOf(p, axis, k);
+  RegistrationOptions o;
+  const Registration centred = Register(sky, p, o);
+  ASSERT_TRUE(centred.registered) << centred.message;
+  const double centred_error = std::abs(AngDiffDeg(centred.center_ray.azimuth_deg, truth.azimuth_deg));
+  EXPECT_GT(centred_error, 0.1);
+  EXPECT_EQ(RefinePrincipalColumn(sky, p, centred, o).center_ray.azimuth_deg, centred.center_ray.azimuth_deg);
+  o.principal_point_range = 0.25;
+  const Registration r = RefinePrincipalColumn(sky, p, centred, o);
+  EXPECT_TRUE(r.registered);
+  EXPECT_NEAR(r.intrinsics.cx_px, k.cx_px, 10.0);
+  EXPECT_LT(std::abs(AngDiffDeg(r.center_ray.azimuth_deg, truth.azimuth_deg)), 0.2 * centred_error);
+  EXPECT_NEAR(r.center_ray.pitch_deg, truth.pitch_deg, 0.03);
+}
+
 // The ambiguity is taken against another solution: a candidate the quick
 // refinement left a few degrees down the best's slope (here 4-5 deg off in
 // azimuth, on a noisy skyline with a misread stretch) is refined again and,

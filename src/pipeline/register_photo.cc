@@ -135,6 +135,11 @@ RegistrationOptions PhotoRegistrationOptions(bool altitude_given, const PhotoOpt
   const std::string fov = PhotoHfovWindow(po, width, height, ro.min_hfov_deg, ro.max_hfov_deg);
   ro.estimate_distortion = !po.pinhole;
   if (po.camera) ro.known_intrinsics = po.camera->Resized(width, height);
+  // A photo cropped after it was taken: its camera's centre lies anywhere
+  // over the width cut off (RefinePrincipalColumn searches it).
+  if (const Frame35mm frame = FrameOf(width, height, po.exif.recorded_width_px, po.exif.recorded_height_px);
+      frame.cropped && !po.camera)
+    ro.principal_point_range = std::clamp((frame.width - width) / (2.0 * width), 0.0, 0.5);
   // How far the observer's given position may be off (the DEM error model):
   // coordinates given (arguments, a manifest row) are taken as surveyed
   // (1 m), a GPS fix from sensors or EXIF as a phone's (10 m); an altitude as
@@ -245,6 +250,7 @@ PhotoRegistration RegisterPhoto(const Site& site, const cv::Mat& image_in, const
       r.message = out.position_check->message;
     }
   }
+  if (r.registered && ro.principal_point_range > 0.0) r = RefinePrincipalColumn(out.skyline, out.Horizon(site), r, ro);
   out.match_ms = MsSince(t0);
   return out;
 }
