@@ -60,7 +60,11 @@ Modes (each a per-photo table and a summary):
             The truth is the ray through the crop's centre by the author's
             full camera model. Counts the photos within 0.5 deg (--floors
             crop=N) and the false ones (0)
-  wrong-crop  (not in the default set) the wrong probes on those crops
+  crop-narrow  (not in the default set; seconds) the same with the centre
+            half of the width (a portrait frame cut from a landscape photo:
+            not turned, its height whole; --floors crop-narrow=N)
+  wrong-crop, wrong-crop-narrow  (not in the default set) the wrong probes
+            on those crops
   reencode  (not in the default set) plain on each photo decoded and saved
             again as JPEG at quality 95 with its EXIF segment kept: the
             pixels change by ~0.2 grey levels on average (an upload, an
@@ -316,14 +320,15 @@ def ray_through(cv2, truth, u, v):
     return math.degrees(math.atan2(d[0], d[1])) % 360.0, math.degrees(math.asin(d[2]))
 
 
-def cropped_copy(cv2, truth, source, path, keep_right, share=0.75):
-    """The photo cropped to `share` of its width (its right part or its left),
-    JPEG quality 95 with its EXIF kept, and the truth of the crop: the ray
-    through its centre, its opening angle. None when it cannot be written."""
+def cropped_copy(cv2, truth, source, path, where, share):
+    """The photo cropped to `share` of its width (its "left", "right" or
+    "centre" part), JPEG quality 95 with its EXIF kept, and the truth of the
+    crop: the ray through its centre, its opening angle. None when it cannot
+    be written."""
     image = cv2.imread(source)
     h, w = image.shape[:2]
     kept = int(round(w * share))
-    x0 = w - kept if keep_right else 0
+    x0 = {"left": 0, "right": w - kept, "centre": (w - kept) // 2}[where]
     ok, data = cv2.imencode(".jpg", image[:, x0:x0 + kept], [cv2.IMWRITE_JPEG_QUALITY, 95])
     if not ok:
         return None
@@ -482,7 +487,7 @@ def main():
     floors = {"plain": 12, "camera": 12, "initial": 13, "skyline": 0.9, "thin": 0.9, "skyline-given": 0.95,
               "registered-skyline": 0.9, "registered-skyline-given": 0.95,
               "thin-given": 0.95, "ring": 0, "ring-camera": 0, "ring-initial": 0, "ring-sensors": 0, "ring-noexif": 0, "ring-hfov": 0, "ring-range": 0, "ring-noalt": 0, "ring-noalt-hfov": 0, "hfov": 12,
-              "sensors": 0, "noexif": 0, "reencode": 0, "gray": 0, "upscale2": 0, "upscale4": 0, "jpeg50": 0, "jpeg30": 0, "crop": 0, "gray-skyline": 0.0,
+              "sensors": 0, "noexif": 0, "reencode": 0, "gray": 0, "upscale2": 0, "upscale4": 0, "jpeg50": 0, "jpeg30": 0, "crop": 0, "crop-narrow": 0, "gray-skyline": 0.0,
               "jpeg30-skyline": 0.0}
     for kv in (opt("--floors") or "").split(","):
         if "=" in kv:
@@ -613,36 +618,40 @@ def main():
         if check and (good < floors[mode] or false):
             print(f"FAIL: --modes {mode} misses its floor or has a false registration")
             failed = True
-    # Cropped copies (the crop's own truth) and the wrong probes on them.
-    if "crop" in modes or "wrong-crop" in modes:
-        cv2 = opencv_for("crop")
+    # Cropped copies (the crop's own truth) and the wrong probes on them:
+    # 3/4 of the width, the left part of every other photo and the right of
+    # the rest; the centre half (a portrait frame from a landscape photo).
+    for mode, share, what in (("crop", 0.75, "cropped to 3/4 of the width"),
+                              ("crop-narrow", 0.5, "cropped to the centre half of the width (portrait)")):
+        if mode not in modes and "wrong-" + mode not in modes:
+            continue
+        cv2 = opencv_for(mode)
         crops = {}
         for i, (name, t, d) in enumerate(photos if cv2 else []):
-            path = os.path.join(tmpdir, name + ".crop.jpg")
-            crops[name] = (path, cropped_copy(cv2, t, os.path.join(d, t["image"]), path, keep_right=i % 2 == 1))
+            path = os.path.join(tmpdir, f"{name}.{mode}.jpg")
+            where = "centre" if share == 0.5 else ("right" if i % 2 else "left")
+            crops[name] = (path, cropped_copy(cv2, t, os.path.join(d, t["image"]), path, where, share))
         if cv2 is None or not all(ct for _, ct in crops.values()):
-            print("FAIL: cannot write the cropped copies")
+            print(f"FAIL: cannot write the copies of --modes {mode}")
             failed = True
-        else:
-            if "crop" in modes:
-                def crop_of(p):
-                    path, ct = crops[p[0]]
-                    return p[0], ct, register(binary, shared, p[2], p[0], ct, [], image=path)
-                good, false, _, _ = pose_table("no prior, cropped to 3/4 of the width (EXIF kept)",
-                                               run_all(crop_of), 0.5)
-                if check and (good < floors["crop"] or false):
-                    print("FAIL: --modes crop misses its floor or has a false registration")
-                    failed = True
-            if "wrong-crop" in modes:
-                def probe_crop(pr):
-                    (name, t, d), label, dem, lat, lon = pr
-                    path, ct = crops[name]
-                    return name, label, register(binary, shared, d, name, ct, [], dem=dem, lat=lat, lon=lon,
-                                                 alt=dem is None, image=path)
-                out = list(pool.map(probe_crop, false_probe_list(photos, shared)))
-                if not report_wrong("wrong position (2-10 km away) or another region's DEM, the cropped copies",
-                                    out) and check:
-                    failed = True
+            continue
+        if mode in modes:
+            def crop_of(p):
+                path, ct = crops[p[0]]
+                return p[0], ct, register(binary, shared, p[2], p[0], ct, [], image=path)
+            good, false, _, _ = pose_table(f"no prior, {what} (EXIF kept)", run_all(crop_of), 0.5)
+            if check and (good < floors[mode] or false):
+                print(f"FAIL: --modes {mode} misses its floor or has a false registration")
+                failed = True
+        if "wrong-" + mode in modes:
+            def probe_crop(pr):
+                (name, t, d), label, dem, lat, lon = pr
+                path, ct = crops[name]
+                return name, label, register(binary, shared, d, name, ct, [], dem=dem, lat=lat, lon=lon,
+                                             alt=dem is None, image=path)
+            out = list(pool.map(probe_crop, false_probe_list(photos, shared)))
+            if not report_wrong(f"wrong position (2-10 km away) or another region's DEM, {what}", out) and check:
+                failed = True
     if "traced" in modes:
         def traced(p):
             if not any(y is not None for y in p[1]["skyline_row"]):

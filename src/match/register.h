@@ -224,7 +224,9 @@ Registration RefinePose(const Skyline& skyline, const HorizonProfile& horizon, c
 // curvature about the wrong column biases the centre ray by 0.2-0.6 deg
 // (a quarter of the width cut off). Kept only when it explains the skyline
 // clearly better than the centre (3 nats over the independent samples:
-// over a coarse DEM's near terrain the cost is flat to a few percent). The
+// over a coarse DEM's near terrain the cost is flat to a few percent), the
+// centre ray moved by at most 1 deg and the opening angle inside the window
+// searched (a correction of the curvature, not another pose). The
 // decision and its figures stay `reg`'s; the pose, focal length,
 // intrinsics (cx) and centre ray are the refit's. `reg` itself when there
 // is nothing to search or nothing gained. Thread-safe.

@@ -114,7 +114,7 @@ std::string PhotoHfovWindow(const PhotoOptions& po, int width, int height, doubl
     return "--hfov-range";
   }
   if (po.exif.focal_35mm) {
-    const Frame35mm frame = FrameOf(width, height, po.exif.recorded_width_px, po.exif.recorded_height_px);
+    const Frame35mm frame = FrameOf(width, height, po.exif.recorded_width_px, po.exif.recorded_height_px, po.exif.turned);
     const double h = HfovFromFocal35mm(*po.exif.focal_35mm, width, frame);
     min_deg = std::max(1.0, h * 0.9), max_deg = std::min(169.0, h * 1.1);
     return std::string(po.exif.focal_35mm_from_crop_factor ? "exif-crop-factor" : "exif") +
@@ -137,7 +137,7 @@ RegistrationOptions PhotoRegistrationOptions(bool altitude_given, const PhotoOpt
   if (po.camera) ro.known_intrinsics = po.camera->Resized(width, height);
   // A photo cropped after it was taken: its camera's centre lies anywhere
   // over the width cut off (RefinePrincipalColumn searches it).
-  if (const Frame35mm frame = FrameOf(width, height, po.exif.recorded_width_px, po.exif.recorded_height_px);
+  if (const Frame35mm frame = FrameOf(width, height, po.exif.recorded_width_px, po.exif.recorded_height_px, po.exif.turned);
       frame.cropped && !po.camera)
     ro.principal_point_range = std::clamp((frame.width - width) / (2.0 * width), 0.0, 0.5);
   // How far the observer's given position may be off (the DEM error model):

@@ -114,6 +114,8 @@ SensorReading ReadExif(const std::string& image_path) {
       if (it != exif.end() && it->count() > 0 && it->toLong() > 0 && it->toLong() < 1000000)
         *field = static_cast<int>(it->toLong());
     }
+    if (const auto o = exif.findKey(Exiv2::ExifKey("Exif.Image.Orientation")); o != exif.end() && o->count() > 0)
+      r.turned = o->toLong() >= 5 && o->toLong() <= 8;
     const auto f35 = exif.findKey(Exiv2::ExifKey("Exif.Photo.FocalLengthIn35mmFilm"));
     if (f35 != exif.end() && f35->count() > 0 && f35->toLong() > 0) {
       r.focal_35mm = static_cast<double>(f35->toLong());
@@ -367,14 +369,15 @@ double HfovFromFocal35mm(double focal_35mm, int width, int height) {
   return HfovFromFocal35mm(focal_35mm, width, Frame35mm{static_cast<double>(width), static_cast<double>(height)});
 }
 
-Frame35mm FrameOf(int width, int height, std::optional<int> recorded_width_px, std::optional<int> recorded_height_px) {
+Frame35mm FrameOf(int width, int height, std::optional<int> recorded_width_px, std::optional<int> recorded_height_px,
+                  bool turned) {
   constexpr double kShapeTolerance = 0.015;  // rounding a resized photo's sides stays far below
   Frame35mm f{static_cast<double>(width), static_cast<double>(height), false};
   if (!recorded_width_px || !recorded_height_px || *recorded_width_px <= 0 || *recorded_height_px <= 0 ||
       width <= 0 || height <= 0)
     return f;
   double rw = *recorded_width_px, rh = *recorded_height_px;
-  if ((rw > rh) != (width > height) && rw != rh && width != height) std::swap(rw, rh);  // turned (EXIF orientation)
+  if (turned) std::swap(rw, rh);  // a portrait crop of a landscape photo is not turned
   if (std::abs((width / static_cast<double>(height)) / (rw / rh) - 1.0) <= kShapeTolerance) return f;
   const double scale = std::max(width / rw, height / rh);
   return Frame35mm{rw * scale, rh * scale, true};

@@ -25,6 +25,9 @@ struct SensorReading {
   // program that rewrote the file) recorded; a photo cropped since shows
   // another shape than its pixels.
   std::optional<int> recorded_width_px, recorded_height_px;
+  // EXIF Orientation 5-8: the pixels are stored turned a quarter, and the
+  // decoded photo (turned upright) has the recorded size the other way round.
+  bool turned = false;
 };
 
 // Parses one reading from JSON text: fields compass_yaw_deg,
@@ -51,8 +54,8 @@ double HfovFromFocal35mm(double focal_35mm, int width, int height);
 
 // The frame a 35 mm-equivalent focal length refers to, in a width x height
 // image's pixels. When the recorded EXIF size (recorded_width_px x
-// recorded_height_px, either way round: a portrait photo is turned) has the
-// image's shape or is absent, the image itself. When its shape differs by
+// recorded_height_px, the other way round when `turned`) has the image's
+// shape or is absent, the image itself. When its shape differs by
 // more than 1.5%, the photo was cropped after it was taken (a photographer's
 // or a web page's framing: the diagonal the equivalence holds on is the
 // camera's, not the crop's): the recorded size scaled so that the side kept
@@ -63,7 +66,7 @@ struct Frame35mm {
   bool cropped = false;
 };
 Frame35mm FrameOf(int width, int height, std::optional<int> recorded_width_px,
-                  std::optional<int> recorded_height_px);
+                  std::optional<int> recorded_height_px, bool turned = false);
 
 // The opening angle of the image over its frame (FrameOf).
 double HfovFromFocal35mm(double focal_35mm, int width, const Frame35mm& frame);

@@ -57,6 +57,7 @@ TEST(ReadExif, GpsDirectionAndFocalRoundTrip) {
     exif["Exif.Photo.FocalLengthIn35mmFilm"] = uint16_t(50);
     exif["Exif.Photo.PixelXDimension"] = uint32_t(6000);
     exif["Exif.Photo.PixelYDimension"] = uint32_t(4000);
+    exif["Exif.Image.Orientation"] = uint16_t(6);
     image->writeMetadata();
   }
   const SensorReading r = ReadExif(path.string());
@@ -65,6 +66,7 @@ TEST(ReadExif, GpsDirectionAndFocalRoundTrip) {
   ASSERT_TRUE(r.recorded_width_px && r.recorded_height_px);
   EXPECT_EQ(*r.recorded_width_px, 6000);
   EXPECT_EQ(*r.recorded_height_px, 4000);
+  EXPECT_TRUE(r.turned);
   EXPECT_NEAR(*r.lat_deg, 46 + 14 / 60.0 + 23.64 / 3600, 1e-9);
   EXPECT_NEAR(*r.lon_deg, -(121 + 31 / 60.0 + 23.04 / 3600), 1e-9);
   EXPECT_NEAR(*r.alt_m, 2105.9, 1e-9);
@@ -165,12 +167,21 @@ TEST(FrameOf, ACropOfOneSideKeepsTheCamerasFrame) {
   EXPECT_NEAR(f.height, 1000.0, 1e-9);
   const double full = HfovFromFocal35mm(50.0, 1500, 1000);
   EXPECT_NEAR(std::tan(HfovFromFocal35mm(50.0, 1125, f) * kPi / 360.0), 0.75 * std::tan(full * kPi / 360.0), 1e-12);
-  // The same crop of a portrait photo (the recorded size is the sensor's,
-  // landscape; the decoded image is turned): the frame is portrait too.
-  const Frame35mm p = FrameOf(1000, 1125, 6000, 4000);
+  // The same crop of a portrait photo (the recorded size is the stored
+  // pixels', landscape; the decoded image is turned upright): the frame is
+  // portrait too.
+  const Frame35mm p = FrameOf(1000, 1125, 6000, 4000, /*turned=*/true);
   EXPECT_TRUE(p.cropped);
   EXPECT_NEAR(p.width, 1000.0, 1e-9);
   EXPECT_NEAR(p.height, 1500.0, 1e-9);
+  // A turned photo resized only: no crop.
+  EXPECT_FALSE(FrameOf(1000, 1500, 6000, 4000, true).cropped);
+  // A portrait crop of a landscape photo (not turned: half its width): the
+  // height is whole.
+  const Frame35mm q = FrameOf(750, 1000, 6000, 4000);
+  EXPECT_TRUE(q.cropped);
+  EXPECT_NEAR(q.width, 1500.0, 1e-9);
+  EXPECT_NEAR(q.height, 1000.0, 1e-9);
   // A letterbox (16:9 from 3:2): the width is whole.
   const Frame35mm l = FrameOf(1920, 1080, 6000, 4000);
   EXPECT_TRUE(l.cropped);
