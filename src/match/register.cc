@@ -785,11 +785,13 @@ Registration RefinePrincipalColumn(const Skyline& skyline, const HorizonProfile&
     const Pose4 start = Pose4::From(AxisPoseFromCenterRay(center, k), reg.focal_px, k1);
     scorer.Reweight(start, cols);
     std::vector<Column> sub = Subsample(cols, options.refine_columns);
-    // k1 held at the registration's: fitted with the centre free, it
-    // trades against it (a half-width crop's centre put at its edge with
-    // k1 at its bound of 0.6, the centre ray 1.4 deg off).
+    // k1 refitted with the centre (held at the centred fit's, it keeps
+    // what that fit made of the offset: a synthetic crop's centre found 65
+    // px short); the guards below catch the two trading off.
     LeastSquaresOptions lso;
     lso.rounds = 3;
+    lso.fit_k1 = reg.distortion_estimated;
+    lso.k1_prior_sigma = options.distortion_prior_sigma;
     out.pose = RefineLeastSquares(scorer, sub, start, lso).pose;
     scorer.Reweight(out.pose, cols);
     out.cost = scorer.Cost(out.pose, cols);
@@ -827,7 +829,9 @@ Registration RefinePrincipalColumn(const Skyline& skyline, const HorizonProfile&
   out.center_ray = CenterRayPose(out.pose, out.intrinsics);
   // The refit corrects the tangent's curvature, a fraction of a degree: one
   // that moves the centre ray further or leaves the opening angles searched
-  // is not that correction, and the registration stays as decided.
+  // is not that correction, and the registration stays as decided (a
+  // half-width crop's centre put at its edge with k1 at its bound of 0.6
+  // moved it 1.4 deg, off the truth by as much).
   if (std::abs(AngDiffDeg(out.center_ray.azimuth_deg, reg.center_ray.azimuth_deg)) > kMaxPrincipalMoveDeg ||
       std::abs(out.center_ray.pitch_deg - reg.center_ray.pitch_deg) > kMaxPrincipalMoveDeg ||
       !(out.hfov_deg >= options.min_hfov_deg * 0.95 && out.hfov_deg <= options.max_hfov_deg * 1.05))
