@@ -53,6 +53,11 @@ Modes (each a per-photo table and a summary):
             webcam frame, a scan or a stripped upload. Counts the photos within
             0.5 deg (--floors noexif=N, default 0) and the false registrations
             (must be 0)
+  turned    (not in the default set; seconds) plain on each photo stored a
+            quarter turn anticlockwise with EXIF Orientation 6 and its
+            recorded size the stored pixels' (a camera held upright): decoded
+            upright, it must register as the photo does, and is not taken
+            for a crop (--floors turned=N)
   crop      (not in the default set; seconds) plain on each photo cropped
             to 3/4 of its width (the left part for every other photo, the
             right for the rest; JPEG quality 95, EXIF kept: its recorded size
@@ -340,6 +345,51 @@ def cropped_copy(cv2, truth, source, path, where, share):
     return t
 
 
+def turned_copy(cv2, source, path):
+    """The photo stored a quarter turn anticlockwise with EXIF Orientation 6
+    (turn clockwise to show) and its recorded size the stored pixels', as a
+    camera held upright writes it: decoded upright it is the photo again.
+    False when its EXIF lacks the tags to rewrite."""
+    import struct
+    stored = cv2.rotate(cv2.imread(source), cv2.ROTATE_90_COUNTERCLOCKWISE)
+    ok, data = cv2.imencode(".jpg", stored, [cv2.IMWRITE_JPEG_QUALITY, 95])
+    if not ok:
+        return False
+    out = bytearray(with_exif_of(open(source, "rb").read(), data.tobytes()))
+    base = out.find(b"Exif\x00\x00") + 6
+    if base < 6:
+        return False
+    order = "<" if out[base:base + 2] == b"II" else ">"
+    u16 = lambda o: struct.unpack(order + "H", out[base + o:base + o + 2])[0]
+    u32 = lambda o: struct.unpack(order + "I", out[base + o:base + o + 4])[0]
+
+    def entry(ifd, tag):
+        for k in range(u16(ifd)):
+            if u16(ifd + 2 + 12 * k) == tag:
+                return ifd + 2 + 12 * k
+        return None
+
+    def put(e, value):  # a SHORT or LONG value held in the entry itself
+        if u16(e + 2) == 3:
+            out[base + e + 8:base + e + 10] = struct.pack(order + "H", value)
+        else:
+            out[base + e + 8:base + e + 12] = struct.pack(order + "I", value)
+    ifd0 = u32(4)
+    orientation, exif_ifd = entry(ifd0, 0x112), entry(ifd0, 0x8769)
+    if orientation is None or exif_ifd is None:
+        return False
+    sub = u32(exif_ifd + 8)
+    xdim, ydim = entry(sub, 0xA002), entry(sub, 0xA003)
+    if xdim is None or ydim is None:
+        return False
+    put(orientation, 6)
+    put(xdim, stored.shape[1])
+    put(ydim, stored.shape[0])
+    with open(path, "wb") as f:
+        f.write(out)
+    return True
+
+
 def traced_file(truth, path):
     json.dump({"width": truth["width"], "height": truth["height"], "y": truth["skyline_row"]}, open(path, "w"))
 
@@ -487,7 +537,7 @@ def main():
     floors = {"plain": 12, "camera": 12, "initial": 13, "skyline": 0.9, "thin": 0.9, "skyline-given": 0.95,
               "registered-skyline": 0.9, "registered-skyline-given": 0.95,
               "thin-given": 0.95, "ring": 0, "ring-camera": 0, "ring-initial": 0, "ring-sensors": 0, "ring-noexif": 0, "ring-hfov": 0, "ring-range": 0, "ring-noalt": 0, "ring-noalt-hfov": 0, "hfov": 12,
-              "sensors": 0, "noexif": 0, "reencode": 0, "gray": 0, "upscale2": 0, "upscale4": 0, "jpeg50": 0, "jpeg30": 0, "crop": 0, "crop-narrow": 0, "gray-skyline": 0.0,
+              "sensors": 0, "noexif": 0, "reencode": 0, "gray": 0, "upscale2": 0, "upscale4": 0, "jpeg50": 0, "jpeg30": 0, "crop": 0, "crop-narrow": 0, "turned": 0, "gray-skyline": 0.0,
               "jpeg30-skyline": 0.0}
     for kv in (opt("--floors") or "").split(","):
         if "=" in kv:
@@ -601,7 +651,9 @@ def main():
             ("upscale2", ".x2.jpg", "no prior, upscaled 2x (bicubic, JPEG quality 95, EXIF kept)", upscaled(2)),
             ("upscale4", ".x4.jpg", "no prior, upscaled 4x (bicubic, JPEG quality 95, EXIF kept)", upscaled(4)),
             ("jpeg50", ".q50.jpg", "no prior, re-encoded as JPEG quality 50 (EXIF kept)", compressed(50)),
-            ("jpeg30", ".q30.jpg", "no prior, re-encoded as JPEG quality 30 (EXIF kept)", compressed(30))):
+            ("jpeg30", ".q30.jpg", "no prior, re-encoded as JPEG quality 30 (EXIF kept)", compressed(30)),
+            ("turned", ".turned.jpg", "no prior, stored a quarter turn with EXIF Orientation 6 (a camera held "
+             "upright)", turned_copy)):
         if mode not in modes:
             continue
         cv2 = opencv_for(mode)
