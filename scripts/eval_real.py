@@ -53,6 +53,10 @@ Modes (each a per-photo table and a summary):
             webcam frame, a scan or a stripped upload. Counts the photos within
             0.5 deg (--floors noexif=N, default 0) and the false registrations
             (must be 0)
+  banner    (not in the default set; seconds) plain on each photo under a
+            webcam's timestamp strip (black, 28 rows per 1000 columns, white
+            text) across its top: the strip is no scene (--floors banner=N);
+            wrong-banner: the wrong probes on those copies
   turned    (not in the default set; seconds) plain on each photo stored a
             quarter turn anticlockwise with EXIF Orientation 6 and its
             recorded size the stored pixels' (a camera held upright): decoded
@@ -537,7 +541,7 @@ def main():
     floors = {"plain": 12, "camera": 12, "initial": 13, "skyline": 0.9, "thin": 0.9, "skyline-given": 0.95,
               "registered-skyline": 0.9, "registered-skyline-given": 0.95,
               "thin-given": 0.95, "ring": 0, "ring-camera": 0, "ring-initial": 0, "ring-sensors": 0, "ring-noexif": 0, "ring-hfov": 0, "ring-range": 0, "ring-noalt": 0, "ring-noalt-hfov": 0, "hfov": 12,
-              "sensors": 0, "noexif": 0, "reencode": 0, "gray": 0, "upscale2": 0, "upscale4": 0, "jpeg50": 0, "jpeg30": 0, "crop": 0, "crop-narrow": 0, "turned": 0, "gray-skyline": 0.0,
+              "sensors": 0, "noexif": 0, "reencode": 0, "gray": 0, "upscale2": 0, "upscale4": 0, "jpeg50": 0, "jpeg30": 0, "crop": 0, "crop-narrow": 0, "turned": 0, "banner": 0, "gray-skyline": 0.0,
               "jpeg30-skyline": 0.0}
     for kv in (opt("--floors") or "").split(","):
         if "=" in kv:
@@ -634,6 +638,20 @@ def main():
     def compressed(quality):
         return lambda cv2, source, path: jpeg_copy(cv2, source, path, quality=quality)
 
+    def bannered(cv2, source, path):
+        # A webcam's timestamp strip: black, 28 rows per 1000 columns, white
+        # text, over the top of the photo (JPEG quality 95, EXIF kept).
+        image = cv2.imread(source)
+        s = image.shape[1] / 1000.0
+        cv2.rectangle(image, (0, 0), (image.shape[1], int(28 * s)), (0, 0, 0), -1)
+        cv2.putText(image, "2009-08-03 19:54:10  CAM 2  T=12.4C", (int(8 * s), int(20 * s)),
+                    cv2.FONT_HERSHEY_SIMPLEX, 0.6 * s, (255, 255, 255), max(1, int(2 * s)))
+        ok, data = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, 95])
+        if ok:
+            with open(path, "wb") as f:
+                f.write(with_exif_of(open(source, "rb").read(), data.tobytes()))
+        return ok
+
     def upscaled(factor):
         def write(cv2, source, path):
             image = cv2.imread(source)
@@ -652,6 +670,8 @@ def main():
             ("upscale4", ".x4.jpg", "no prior, upscaled 4x (bicubic, JPEG quality 95, EXIF kept)", upscaled(4)),
             ("jpeg50", ".q50.jpg", "no prior, re-encoded as JPEG quality 50 (EXIF kept)", compressed(50)),
             ("jpeg30", ".q30.jpg", "no prior, re-encoded as JPEG quality 30 (EXIF kept)", compressed(30)),
+            ("banner", ".banner.jpg", "no prior, a webcam's timestamp strip over the top (JPEG quality 95, EXIF "
+             "kept)", bannered),
             ("turned", ".turned.jpg", "no prior, stored a quarter turn with EXIF Orientation 6 (a camera held "
              "upright)", turned_copy)):
         if mode not in modes:
@@ -767,6 +787,8 @@ def main():
     # size, a strongly compressed one, must refuse a wrong position as the
     # photo does.
     for mode, suffix, what, write in (("wrong-upscale4", ".wrong.x4.jpg", "the photos upscaled 4x", upscaled(4)),
+                                      ("wrong-banner", ".wrong.banner.jpg", "the photos under a timestamp strip",
+                                       bannered),
                                       ("wrong-jpeg30", ".wrong.q30.jpg", "the photos as JPEG quality 30",
                                        compressed(30))):
         if mode not in modes:

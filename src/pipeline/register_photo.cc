@@ -390,7 +390,13 @@ std::optional<Registration> RecheckWithGuidedSkyline(const cv::Mat& image, const
   const double max_first_rms = 1.2 * options.max_rms_px;
   const int w = skyline.width, h = skyline.height;
   const double px_scale = ToleranceScale(w), tau = options.inlier_px * px_scale;
-  if (first.registered || !(first.focal_px > 0.0) || first.inlier_fraction < min_first_inliers ||
+  // Not under a strip cut from the top (a webcam's timestamp): the re-read
+  // fits the sky above the skyline, and the strip has cut it to a few rows
+  // (the real photos under a strip: the second look registered
+  // AK01b_20100525 from 2 km away 4.6 deg off, 1 of 91 wrong probes and 1
+  // of 468 ring probes; without it 7 of 13 register, none falsely).
+  if (first.registered || skyline.overlay_top_rows > 0 || !(first.focal_px > 0.0) ||
+      first.inlier_fraction < min_first_inliers ||
       !(first.model_rms_px <= max_first_rms * px_scale) || first.ambiguity_ratio < min_first_ambiguity)
     return std::nullopt;
   const cv::Mat bgr = AsBgr(image);
@@ -421,9 +427,11 @@ std::optional<Registration> RecheckWithGuidedSkyline(const cv::Mat& image, const
       const double p = pred[c], y = skyline.MatchY(c);
       if (!std::isfinite(p) || !std::isfinite(y) || y - p <= tau) continue;  // fits, lies above, or is hidden
       // Boundaries between rows r - 1 and r, above the extracted one.
-      const int lo = std::max(6, static_cast<int>(std::floor(p - 2 * tau)));
-      const int hi =
-          std::min({h - 3, static_cast<int>(std::ceil(p + 2 * tau)), static_cast<int>(std::floor(y - tau))});
+      // Rows read: from 9 above the step (its 3-row means and the sky's
+      // above them), never within an overlay strip.
+      const int lo = std::max({6, static_cast<int>(std::floor(p - 2 * tau)), skyline.overlay_top_rows + 9});
+      const int hi = std::min({h - 3 - skyline.overlay_bottom_rows, static_cast<int>(std::ceil(p + 2 * tau)),
+                               static_cast<int>(std::floor(y - tau))});
       if (hi < lo) continue;
       const auto [r, yr, contrast] = StrongestStep(
           lo, hi, [&](int row) { return cv::norm(mean3(row, c) - mean3(row - 3, c)); }, scores);

@@ -119,8 +119,8 @@ Skyline GuideSkyline(const cv::Mat& image, const Skyline& skyline, const std::ve
     if (!std::isfinite(p) || !std::isfinite(y) || !(above_px[x] >= 0.0) || !(below >= 0.0) || y <= p + below) continue;
     const double above = std::min(above_px[x], kMaxWindowPx * scale - below);
     lo[x] = static_cast<int>(std::floor(p - above));
-    hi[x] = std::min(h - 2, static_cast<int>(std::ceil(p + below)));
-    const int f = std::min(fit_rows, lo[x] - kGapRows);
+    hi[x] = std::min(h - 2 - skyline.overlay_bottom_rows, static_cast<int>(std::ceil(p + below)));
+    const int f = std::min(fit_rows, lo[x] - kGapRows - skyline.overlay_top_rows);  // never within a strip
     if (f < min_fit || hi[x] <= lo[x]) continue;
     first[x] = lo[x] - fit_rows - kGapRows;  // rows above the image repeat its top row: the fit starts at lo - f - 1
   }
@@ -133,7 +133,7 @@ Skyline GuideSkyline(const cv::Mat& image, const Skyline& skyline, const std::ve
     if (first[x] == skyline_detail::RefineStrips::kNoStrip) continue;
     const size_t at = static_cast<size_t>(x) * count;
     SkyFit fit(lab.l.data() + at, lab.a.data() + at, lab.b.data() + at);
-    const int f = std::min(fit_rows, lo[x] - kGapRows);
+    const int f = std::min(fit_rows, lo[x] - kGapRows - skyline.overlay_top_rows);
     // The departure must hold down to the extracted boundary.
     const int held_to = static_cast<int>(std::floor(skyline.y[x])) - 1 - first[x];
     const int i = SkyEnd(fit, lo[x] - first[x], hi[x] - first[x], f, held_to, held_max, res);

@@ -2,6 +2,7 @@
 #include "skyline/skyline.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <opencv2/imgproc.hpp>
@@ -681,6 +682,63 @@ cv::Mat ToBgr(const cv::Mat& image) {
   return bgr;
 }
 
+// An overlay band along the top or bottom edge (a webcam's timestamp
+// strip): rows of one flat colour across the width (at least half of each
+// row within kBandTolerance of the edge row's median colour), carrying text
+// (pixels far from that colour), ending in a straight edge (the next rows
+// depart from it across the width). Read as scene, a black strip over the
+// sky passes for a night sky above a pale "terrain" and its lower edge for
+// the skyline (the real photos with a 28-row strip: 12 -> 2 of 13
+// registered). Returns the rows to leave out at that edge (0: none): the
+// band and a JPEG block below it (left in, the ringing's one darker row
+// over the sky nulled CG05_20050811_130000's whole skyline).
+constexpr int kBandTolerance = 4;         // levels per channel: JPEG's noise on a flat strip
+constexpr double kBandRowShare = 0.5;     // text covers less of a band's row
+constexpr double kBandFirstRowShare = 0.6;
+constexpr int kTextLevels = 60;           // a text pixel departs this far from the band's colour
+constexpr double kTextShare = 0.003;      // of the band's pixels at least
+constexpr double kEdgeRowShare = 0.3;     // rows after the band: at most this share still its colour
+constexpr int kBandEdgeRows = 8;  // a JPEG block: its ringing below the strip darkens the first sky rows
+
+int OverlayBandRows(const cv::Mat& bgr, bool top) {
+  const int h = bgr.rows, w = bgr.cols;
+  const int max_rows = h / 5, min_rows = std::max(4, h / 150);
+  if (max_rows < min_rows + 3 || w < 16) return 0;
+  auto row_at = [&](int i) { return bgr.ptr<cv::Vec3b>(top ? i : h - 1 - i); };
+  cv::Vec3b mode;
+  {
+    const cv::Vec3b* r = row_at(0);
+    for (int k = 0; k < 3; ++k) {
+      std::array<int, 256> hist{};
+      for (int x = 0; x < w; ++x) ++hist[r[x][k]];
+      int acc = 0, v = 0;
+      while (acc + hist[v] <= w / 2) acc += hist[v++];
+      mode[k] = static_cast<uchar>(v);
+    }
+  }
+  auto near = [&](const cv::Vec3b& p, int tol) {
+    return std::abs(p[0] - mode[0]) <= tol && std::abs(p[1] - mode[1]) <= tol && std::abs(p[2] - mode[2]) <= tol;
+  };
+  auto share_near = [&](int i) {
+    const cv::Vec3b* r = row_at(i);
+    int n = 0;
+    for (int x = 0; x < w; ++x) n += near(r[x], kBandTolerance);
+    return static_cast<double>(n) / w;
+  };
+  if (share_near(0) < kBandFirstRowShare) return 0;
+  int rows = 0;
+  long text = 0;
+  while (rows < max_rows && share_near(rows) >= kBandRowShare) {
+    const cv::Vec3b* r = row_at(rows);
+    for (int x = 0; x < w; ++x) text += !near(r[x], kTextLevels);
+    ++rows;
+  }
+  if (rows < min_rows || rows >= max_rows || text < kTextShare * rows * w) return 0;
+  for (int i = rows; i < std::min(h, rows + 1 + kBandEdgeRows); ++i)
+    if (i > rows && share_near(i) > kEdgeRowShare) return 0;  // the row right after may be the blurred edge
+  return rows + kBandEdgeRows;
+}
+
 }  // namespace
 
 int ExtractionReduction(int cols, int rows) {
@@ -716,8 +774,10 @@ int Skyline::VisibleCount() const {
   return static_cast<int>(std::count_if(y.begin(), y.end(), [](double v) { return std::isfinite(v); }));
 }
 
-Skyline ExtractSkyline(const cv::Mat& image, const SkylineOptions& options) {
-  options.Check();
+namespace {
+
+// ExtractSkyline on an image with no overlay bands.
+Skyline ExtractSceneSkyline(const cv::Mat& image, const SkylineOptions& options) {
   if (image.empty() || image.depth() != CV_8U ||
       (image.channels() != 1 && image.channels() != 3 && image.channels() != 4))
     throw InvalidArgument("skyline: the image must be a non-empty 8-bit grey, BGR or BGRA image");
@@ -730,7 +790,7 @@ Skyline ExtractSkyline(const cv::Mat& image, const SkylineOptions& options) {
 
   const cv::Mat bgr = ToBgr(image);
   if (const int k = ExtractionReduction(bgr.cols, bgr.rows); k >= 2) {
-    Skyline up = MappedUp(ExtractSkyline(BlockMeans(bgr, k), options), k, image.cols, image.rows);
+    Skyline up = MappedUp(ExtractSceneSkyline(BlockMeans(bgr, k), options), k, image.cols, image.rows);
     // At full size to within a fraction of a pixel: the edge each column
     // was read at, and its raise to a fainter ridge above where that raise
     // is within a reduced row (a row the edge half fills departs from the
@@ -953,6 +1013,29 @@ Skyline ExtractSkyline(const cv::Mat& image, const SkylineOptions& options) {
   }
   if (std::none_of(out.y_alt.begin(), out.y_alt.end(), [](double v) { return std::isfinite(v); })) out.y_alt.clear();
   return out;
+}
+
+}  // namespace
+
+Skyline ExtractSkyline(const cv::Mat& image, const SkylineOptions& options) {
+  options.Check();
+  if (image.empty() || image.depth() != CV_8U ||
+      (image.channels() != 1 && image.channels() != 3 && image.channels() != 4))
+    throw InvalidArgument("skyline: the image must be a non-empty 8-bit grey, BGR or BGRA image");
+  if (image.rows < 8 || image.cols < 8) return ExtractSceneSkyline(image, options);
+  const cv::Mat bgr = ToBgr(image);
+  // A timestamp strip along the top or bottom edge is not scene: the
+  // skyline is read between them, in the photo's rows.
+  if (const int top = OverlayBandRows(bgr, true), bottom = OverlayBandRows(bgr, false);
+      (top > 0 || bottom > 0) && bgr.rows - top - bottom >= 8) {
+    Skyline s = ExtractSceneSkyline(bgr.rowRange(top, bgr.rows - bottom).clone(), options);
+    s.height = image.rows;
+    s.overlay_top_rows = top, s.overlay_bottom_rows = bottom;
+    for (double& v : s.y) v += top;
+    for (double& v : s.y_alt) v += top;
+    return s;
+  }
+  return ExtractSceneSkyline(bgr, options);
 }
 
 cv::Mat DrawSkylineDebug(const cv::Mat& image, const Skyline& skyline) {

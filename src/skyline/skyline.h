@@ -59,6 +59,10 @@ struct Skyline {
   // 1 and brought wrong positions nearer the ambiguity gate; matching the
   // first-departure raise cost 1).
   std::vector<double> y_alt;
+  // Rows along the top and bottom edges that are no scene (a webcam's
+  // timestamp strip and a JPEG block below it): the skyline was read
+  // between them, and a re-read near a predicted horizon stays out of them.
+  int overlay_top_rows = 0, overlay_bottom_rows = 0;
   double Alt(int x) const { return x >= 0 && x < static_cast<int>(y_alt.size()) ? y_alt[x] : NAN; }
   // The boundary the matching reads in column x: y_alt where set, else y.
   double MatchY(int x) const { return std::isfinite(Alt(x)) ? y_alt[x] : y[x]; }

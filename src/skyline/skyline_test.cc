@@ -48,6 +48,39 @@ TEST(ExtractSkyline, FindsASyntheticSkylineWithinAPixel) {
   EXPECT_GE(good, 620);
 }
 
+// A webcam's timestamp strip (black, white text) along the top edge, and
+// one along the bottom: the skyline between them, in the photo's rows, as
+// without them. A flat sky reaching the top edge (no text) is no strip.
+TEST(ExtractSkyline, TimestampStripsAreNotScene) {
+  std::vector<double> truth;
+  cv::Mat img = SyntheticScene(640, 400, truth);
+  // A pale hazy sky over dark grey rock (a black strip over it reads as a
+  // night sky above pale terrain).
+  for (int y = 0; y < 400; ++y)
+    for (int x = 0; x < 640; ++x)
+      img.at<cv::Vec3b>(y, x) = y + 0.5 < truth[x] ? cv::Vec3b(205, 195, 190 - 10 * y / 400)
+                                                   : cv::Vec3b(90 + (x * 7 + y * 13) % 20, 95, 100);
+  AddNoise(img, 1.0);
+  cv::rectangle(img, {0, 0}, {639, 21}, cv::Scalar(0, 0, 0), cv::FILLED);
+  cv::putText(img, "2026-11-28 15:04:10  CAM 3", {6, 16}, cv::FONT_HERSHEY_SIMPLEX, 0.5, cv::Scalar(255, 255, 255), 1);
+  cv::rectangle(img, {0, 380}, {639, 399}, cv::Scalar(40, 40, 40), cv::FILLED);
+  cv::putText(img, "T 12.4 C", {6, 395}, cv::FONT_HERSHEY_SIMPLEX, 0.5, cv::Scalar(255, 255, 255), 1);
+  const Skyline s = ExtractSkyline(img, SkylineOptions{});
+  ASSERT_EQ(s.height, 400);
+  int good = 0;
+  for (int x = 0; x < 640; ++x)
+    if (std::isfinite(s.y[x]) && std::abs(s.y[x] - std::ceil(truth[x] - 0.5)) <= 1.0) ++good;
+  EXPECT_GE(good, 620);
+  // A flat sky reaching the top edge, no text: read as before.
+  cv::Mat plain = SyntheticScene(640, 400, truth);
+  cv::rectangle(plain, {0, 0}, {639, 21}, cv::Scalar(235, 200, 160), cv::FILLED);
+  const Skyline p = ExtractSkyline(plain, SkylineOptions{});
+  good = 0;
+  for (int x = 0; x < 640; ++x)
+    if (std::isfinite(p.y[x]) && std::abs(p.y[x] - std::ceil(truth[x] - 0.5)) <= 1.0) ++good;
+  EXPECT_GE(good, 620);
+}
+
 // Large and odd sizes take the whole-factor reduction (which drops the last
 // rows and columns) and then the resize to the work width; every column,
 // the last ones too, must map back to the right full-size rows. The same
