@@ -308,6 +308,16 @@ def variant_args(variant, name, t, i, files):
     return ["--no-exif"] if variant == "noexif" else []
 
 
+def write_jpeg_with_exif(cv2, image, source, path, quality=95):
+    """`image` written to `path` as JPEG with the EXIF of the photo `source`
+    kept; False when OpenCV cannot encode it."""
+    ok, data = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, quality])
+    if ok:
+        with open(path, "wb") as f:
+            f.write(with_exif_of(open(source, "rb").read(), data.tobytes()))
+    return ok
+
+
 def ray_through(cv2, truth, u, v):
     """Azimuth and elevation (degrees) of the ray through pixel (u, v) (the
     origin at the top-left corner of the top-left pixel) by the truth's full
@@ -338,11 +348,8 @@ def cropped_copy(cv2, truth, source, path, where, share):
     h, w = image.shape[:2]
     kept = int(round(w * share))
     x0 = {"left": 0, "right": w - kept, "centre": (w - kept) // 2}[where]
-    ok, data = cv2.imencode(".jpg", image[:, x0:x0 + kept], [cv2.IMWRITE_JPEG_QUALITY, 95])
-    if not ok:
+    if not write_jpeg_with_exif(cv2, image[:, x0:x0 + kept], source, path):
         return None
-    with open(path, "wb") as f:
-        f.write(with_exif_of(open(source, "rb").read(), data.tobytes()))
     t = dict(truth)
     t["yaw_deg"], t["pitch_deg"] = ray_through(cv2, truth, x0 + kept / 2.0, h / 2.0)
     t["hfov_deg"] = math.degrees(2.0 * math.atan(kept / (2.0 * truth["camera"]["fx_px"])))
@@ -626,11 +633,7 @@ def main():
 
     def jpeg_copy(cv2, source, path, grey=False, quality=95):
         image = cv2.imread(source, cv2.IMREAD_GRAYSCALE if grey else cv2.IMREAD_COLOR)
-        ok, data = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, quality])
-        if ok:
-            with open(path, "wb") as f:
-                f.write(with_exif_of(open(source, "rb").read(), data.tobytes()))
-        return ok
+        return write_jpeg_with_exif(cv2, image, source, path, quality)
 
     def grey(cv2, source, path):
         return jpeg_copy(cv2, source, path, grey=True)
@@ -646,21 +649,13 @@ def main():
         cv2.rectangle(image, (0, 0), (image.shape[1], int(28 * s)), (0, 0, 0), -1)
         cv2.putText(image, "2009-08-03 19:54:10  CAM 2  T=12.4C", (int(8 * s), int(20 * s)),
                     cv2.FONT_HERSHEY_SIMPLEX, 0.6 * s, (255, 255, 255), max(1, int(2 * s)))
-        ok, data = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, 95])
-        if ok:
-            with open(path, "wb") as f:
-                f.write(with_exif_of(open(source, "rb").read(), data.tobytes()))
-        return ok
+        return write_jpeg_with_exif(cv2, image, source, path)
 
     def upscaled(factor):
         def write(cv2, source, path):
             image = cv2.imread(source)
             big = cv2.resize(image, None, fx=factor, fy=factor, interpolation=cv2.INTER_CUBIC)
-            ok, data = cv2.imencode(".jpg", big, [cv2.IMWRITE_JPEG_QUALITY, 95])
-            if ok:
-                with open(path, "wb") as f:
-                    f.write(with_exif_of(open(source, "rb").read(), data.tobytes()))
-            return ok
+            return write_jpeg_with_exif(cv2, big, source, path)
         return write
     for mode, suffix, title, write in (
             ("noexif", ".noexif.png", "no prior, no EXIF (the pixels alone, as PNG)", without_exif),
