@@ -104,6 +104,15 @@ SkylineOptions PhotoSkylineOptions(const PhotoOptions& options) {
   return so;
 }
 
+namespace {
+
+// The frame the photo's EXIF focal length refers to (sensors.h FrameOf).
+Frame35mm PhotoFrame(const PhotoOptions& po, int width, int height) {
+  return FrameOf(width, height, po.exif.recorded_width_px, po.exif.recorded_height_px, po.exif.turned);
+}
+
+}  // namespace
+
 std::string PhotoHfovWindow(const PhotoOptions& po, int width, int height, double& min_deg, double& max_deg) {
   if (po.hfov_deg) {
     min_deg = *po.hfov_deg * 0.97, max_deg = std::min(169.0, *po.hfov_deg * 1.03);
@@ -114,7 +123,7 @@ std::string PhotoHfovWindow(const PhotoOptions& po, int width, int height, doubl
     return "--hfov-range";
   }
   if (po.exif.focal_35mm) {
-    const Frame35mm frame = FrameOf(width, height, po.exif.recorded_width_px, po.exif.recorded_height_px, po.exif.turned);
+    const Frame35mm frame = PhotoFrame(po, width, height);
     const double h = HfovFromFocal35mm(*po.exif.focal_35mm, width, frame);
     min_deg = std::max(1.0, h * 0.9), max_deg = std::min(169.0, h * 1.1);
     return std::string(po.exif.focal_35mm_from_crop_factor ? "exif-crop-factor" : "exif") +
@@ -137,8 +146,7 @@ RegistrationOptions PhotoRegistrationOptions(bool altitude_given, const PhotoOpt
   if (po.camera) ro.known_intrinsics = po.camera->Resized(width, height);
   // A photo cropped after it was taken: its camera's centre lies anywhere
   // over the width cut off (RefinePrincipalColumn searches it).
-  if (const Frame35mm frame = FrameOf(width, height, po.exif.recorded_width_px, po.exif.recorded_height_px, po.exif.turned);
-      frame.cropped && !po.camera)
+  if (const Frame35mm frame = PhotoFrame(po, width, height); frame.cropped && !po.camera)
     ro.principal_point_range = std::clamp((frame.width - width) / (2.0 * width), 0.0, 0.5);
   // How far the observer's given position may be off (the DEM error model):
   // coordinates given (arguments, a manifest row) are taken as surveyed
@@ -427,9 +435,9 @@ std::optional<Registration> RecheckWithGuidedSkyline(const cv::Mat& image, const
       const double p = pred[c], y = skyline.MatchY(c);
       if (!std::isfinite(p) || !std::isfinite(y) || y - p <= tau) continue;  // fits, lies above, or is hidden
       // Boundaries between rows r - 1 and r, above the extracted one.
-      // Rows read: from 9 above the step (its 3-row means and the sky's
-      // above them), never within an overlay strip.
-      const int lo = std::max({6, static_cast<int>(std::floor(p - 2 * tau)), skyline.overlay_top_rows + 9});
+      // (Never within a strip along the bottom: under one along the top
+      // there is no second look.)
+      const int lo = std::max(6, static_cast<int>(std::floor(p - 2 * tau)));
       const int hi = std::min({h - 3 - skyline.overlay_bottom_rows, static_cast<int>(std::ceil(p + 2 * tau)),
                                static_cast<int>(std::floor(y - tau))});
       if (hi < lo) continue;

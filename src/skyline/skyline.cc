@@ -734,8 +734,9 @@ int OverlayBandRows(const cv::Mat& bgr, bool top) {
     ++rows;
   }
   if (rows < min_rows || rows >= max_rows || text < kTextShare * rows * w) return 0;
-  for (int i = rows; i < std::min(h, rows + 1 + kBandEdgeRows); ++i)
-    if (i > rows && share_near(i) > kEdgeRowShare) return 0;  // the row right after may be the blurred edge
+  // The row right after the band may be its blurred edge; the next ones must depart.
+  for (int i = rows + 1; i <= std::min(h - 1, rows + kBandEdgeRows); ++i)
+    if (share_near(i) > kEdgeRowShare) return 0;
   return rows + kBandEdgeRows;
 }
 
@@ -776,11 +777,8 @@ int Skyline::VisibleCount() const {
 
 namespace {
 
-// ExtractSkyline on an image with no overlay bands.
+// ExtractSkyline on an image with no overlay bands (checked by the caller).
 Skyline ExtractSceneSkyline(const cv::Mat& image, const SkylineOptions& options) {
-  if (image.empty() || image.depth() != CV_8U ||
-      (image.channels() != 1 && image.channels() != 3 && image.channels() != 4))
-    throw InvalidArgument("skyline: the image must be a non-empty 8-bit grey, BGR or BGRA image");
   Skyline out;
   out.width = image.cols;
   out.height = image.rows;

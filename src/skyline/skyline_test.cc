@@ -35,6 +35,14 @@ void AddNoise(cv::Mat& img, double sigma) {
   wide.convertTo(img, CV_8UC3);
 }
 
+// Columns whose boundary lies within a pixel of the scene's true row.
+int WithinAPixel(const Skyline& s, const std::vector<double>& truth) {
+  int good = 0;
+  for (int x = 0; x < s.width; ++x)
+    if (std::isfinite(s.y[x]) && std::abs(s.y[x] - std::ceil(truth[x] - 0.5)) <= 1.0) ++good;
+  return good;
+}
+
 TEST(SkylineOptions, DefaultsAreValid) { EXPECT_NO_THROW(SkylineOptions{}.Check()); }
 
 TEST(ExtractSkyline, FindsASyntheticSkylineWithinAPixel) {
@@ -42,10 +50,7 @@ TEST(ExtractSkyline, FindsASyntheticSkylineWithinAPixel) {
   const cv::Mat img = SyntheticScene(640, 400, truth);
   const Skyline s = ExtractSkyline(img, SkylineOptions{});
   ASSERT_EQ(s.width, 640);
-  int good = 0;
-  for (int x = 0; x < 640; ++x)
-    if (std::isfinite(s.y[x]) && std::abs(s.y[x] - std::ceil(truth[x] - 0.5)) <= 1.0) ++good;
-  EXPECT_GE(good, 620);
+  EXPECT_GE(WithinAPixel(s, truth), 620);
 }
 
 // A webcam's timestamp strip (black, white text) along the top edge, and
@@ -67,18 +72,11 @@ TEST(ExtractSkyline, TimestampStripsAreNotScene) {
   cv::putText(img, "T 12.4 C", {6, 395}, cv::FONT_HERSHEY_SIMPLEX, 0.5, cv::Scalar(255, 255, 255), 1);
   const Skyline s = ExtractSkyline(img, SkylineOptions{});
   ASSERT_EQ(s.height, 400);
-  int good = 0;
-  for (int x = 0; x < 640; ++x)
-    if (std::isfinite(s.y[x]) && std::abs(s.y[x] - std::ceil(truth[x] - 0.5)) <= 1.0) ++good;
-  EXPECT_GE(good, 620);
+  EXPECT_GE(WithinAPixel(s, truth), 620);
   // A flat sky reaching the top edge, no text: read as before.
   cv::Mat plain = SyntheticScene(640, 400, truth);
   cv::rectangle(plain, {0, 0}, {639, 21}, cv::Scalar(235, 200, 160), cv::FILLED);
-  const Skyline p = ExtractSkyline(plain, SkylineOptions{});
-  good = 0;
-  for (int x = 0; x < 640; ++x)
-    if (std::isfinite(p.y[x]) && std::abs(p.y[x] - std::ceil(truth[x] - 0.5)) <= 1.0) ++good;
-  EXPECT_GE(good, 620);
+  EXPECT_GE(WithinAPixel(ExtractSkyline(plain, SkylineOptions{}), truth), 620);
 }
 
 // Large and odd sizes take the whole-factor reduction (which drops the last
@@ -92,10 +90,7 @@ TEST(ExtractSkyline, LargeOddSizedImagesMapBackToFullSizeRows) {
     for (int pass = 0; pass < 2; ++pass) {
       const Skyline s = ExtractSkyline(img, SkylineOptions{});
       ASSERT_EQ(s.width, w);
-      int good = 0;
-      for (int x = 0; x < w; ++x)
-        if (std::isfinite(s.y[x]) && std::abs(s.y[x] - std::ceil(truth[x] - 0.5)) <= 1.0) ++good;
-      EXPECT_GE(good, 0.97 * w) << w << " x " << h << " pass " << pass;
+      EXPECT_GE(WithinAPixel(s, truth), 0.97 * w) << w << " x " << h << " pass " << pass;
       for (int x = w - 3; x < w; ++x) EXPECT_NEAR(s.y[x], std::ceil(truth[x] - 0.5), 1.0) << w << " x " << h;
     }
   }
