@@ -558,7 +558,7 @@ Registration Register(const Skyline& skyline, const HorizonProfile& horizon, con
   auto admitted = [&](const Pose4& q) {
     if (!WithinPrior(options, q.ToPose())) return false;
     const double hfov = HfovFromFocalDeg(q.f, width);
-    return frame.known() || (hfov >= options.min_hfov_deg * 0.95 && hfov <= options.max_hfov_deg * 1.05);
+    return frame.known() || options.AdmitsHfov(hfov);
   };
   auto refine_pool = [&](size_t from, size_t to) {
     std::vector<std::optional<Candidate>> slots(to - from);
@@ -834,7 +834,7 @@ Registration RefinePrincipalColumn(const Skyline& skyline, const HorizonProfile&
   // moved it 1.4 deg, off the truth by as much).
   if (std::abs(AngDiffDeg(out.center_ray.azimuth_deg, reg.center_ray.azimuth_deg)) > kMaxPrincipalMoveDeg ||
       std::abs(out.center_ray.pitch_deg - reg.center_ray.pitch_deg) > kMaxPrincipalMoveDeg ||
-      !(out.hfov_deg >= options.min_hfov_deg * 0.95 && out.hfov_deg <= options.max_hfov_deg * 1.05))
+      !options.AdmitsHfov(out.hfov_deg))
     return reg;
   return out;
 }

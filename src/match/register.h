@@ -126,6 +126,9 @@ struct RegistrationOptions {
   // narrow window. Then no rival at another opening angle can refuse a
   // wrong pose.
   bool OpeningAngleKnown() const { return known_intrinsics.has_value() || NarrowHfovWindow(); }
+  // Whether an opening angle is one the search admits: the window and 5%
+  // beyond it (a refined focal length may drift a little past its edge).
+  bool AdmitsHfov(double hfov_deg) const { return hfov_deg >= min_hfov_deg * 0.95 && hfov_deg <= max_hfov_deg * 1.05; }
   // Whether `informative_columns` (Registration::informative_columns) of a
   // skyline `width` columns wide are enough to tell the pose.
   bool TellsThePose(double informative_columns, int width) const {

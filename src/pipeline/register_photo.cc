@@ -330,9 +330,7 @@ void RefinePhotoPosition(const Site& site, const cv::Mat& image, const PositionO
 
 bool WithinPose(const RegistrationOptions& constrained, const Registration& r) {
   if (!WithinPrior(constrained, r.pose)) return false;
-  // The opening angles as the search admits them (5% beyond the window).
-  const double hfov = r.focal_px > 0.0 ? r.hfov_deg : NAN;
-  return hfov >= constrained.min_hfov_deg * 0.95 && hfov <= constrained.max_hfov_deg * 1.05;
+  return r.focal_px > 0.0 && constrained.AdmitsHfov(r.hfov_deg);
 }
 
 Registration ConfirmedWithoutPrior(Registration alone, const RegistrationOptions& constrained) {
