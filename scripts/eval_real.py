@@ -69,6 +69,18 @@ Modes (each a per-photo table and a summary):
             The truth is the ray through the crop's centre by the author's
             full camera model. Counts the photos within 0.5 deg (--floors
             crop=N) and the false ones (0)
+  stations  (not in the default set; seconds) `batch` over every photo and
+            its JPEG quality 95 copy, the photos of a station (one position)
+            in one run, with and without --check-every-photo: once two photos
+            of a station have passed the position check (and none was
+            refused), the rest skip its wide look. Per photo the status and
+            error both ways; fails when a decision or pose differs between
+            the two runs or a registration is false, or below --floors
+            stations=N (photos and copies within 0.5 deg)
+  wrong-stations  (not in the default set) every station's batch (photos and
+            copies) from the wrong probes' positions and the other regions'
+            DEMs: none may register more than 1 deg off (as the ring's probes)
+  ring-stations  (not in the default set) the same from the ring's positions
   crop-narrow  (not in the default set; seconds) the same with the centre
             half of the width (a portrait frame cut from a landscape photo:
             not turned, its height whole; --floors crop-narrow=N)
@@ -143,7 +155,7 @@ thin-given=0.95 by default: skyline and thin are within 2 px, the -given floors
 the share given a value: the issue's targets) or when any registration is
 false.
 """
-import concurrent.futures, json, math, os, statistics, subprocess, sys, tempfile
+import collections, concurrent.futures, hashlib, json, math, os, statistics, subprocess, sys, tempfile
 
 ALL_MODES = ["plain", "camera", "initial", "traced", "traced-pinhole", "skyline", "registered-skyline", "thin", "wrong",
              "wrong-camera", "wrong-initial"]
@@ -548,7 +560,7 @@ def main():
     floors = {"plain": 12, "camera": 12, "initial": 13, "skyline": 0.9, "thin": 0.9, "skyline-given": 0.95,
               "registered-skyline": 0.9, "registered-skyline-given": 0.95,
               "thin-given": 0.95, "ring": 0, "ring-camera": 0, "ring-initial": 0, "ring-sensors": 0, "ring-noexif": 0, "ring-hfov": 0, "ring-range": 0, "ring-noalt": 0, "ring-noalt-hfov": 0, "hfov": 12,
-              "sensors": 0, "noexif": 0, "reencode": 0, "gray": 0, "upscale2": 0, "upscale4": 0, "jpeg50": 0, "jpeg30": 0, "crop": 0, "crop-narrow": 0, "turned": 0, "banner": 0, "gray-skyline": 0.0,
+              "sensors": 0, "noexif": 0, "reencode": 0, "gray": 0, "upscale2": 0, "upscale4": 0, "jpeg50": 0, "jpeg30": 0, "crop": 0, "crop-narrow": 0, "stations": 0, "turned": 0, "banner": 0, "gray-skyline": 0.0,
               "jpeg30-skyline": 0.0}
     for kv in (opt("--floors") or "").split(","):
         if "=" in kv:
@@ -897,7 +909,129 @@ def main():
         if check and (false_runs or errs):
             print("FAIL: a perturbed run registered falsely or failed")
             failed = True
+    if any(m in modes for m in ("stations", "wrong-stations", "ring-stations")):
+        if not stations_modes(binary, shared, photos, modes, tmpdir, pool, floors, check):
+            failed = True
     return 1 if failed else 0
+
+
+def stations_modes(binary, shared, photos, modes, tmpdir, pool, floors, check):
+    """The stations, wrong-stations and ring-stations modes (see the usage);
+    False when a check failed."""
+    cv2 = opencv_for("stations")
+    if cv2 is None:
+        return False
+    # Each photo and its copy at JPEG quality 95 (EXIF kept), grouped by
+    # station (its position), in the order of the photos.
+    stations = collections.OrderedDict()
+    for name, t, d in photos:
+        copy = os.path.join(tmpdir, name + ".station-q95.jpg")
+        if not write_jpeg_with_exif(cv2, cv2.imread(os.path.join(d, t["image"])), os.path.join(d, t["image"]), copy):
+            print(f"FAIL: cannot write the copies of --modes stations")
+            return False
+        key = (t["lat"], t["lon"], t["alt_m"], t["dem"])
+        stations.setdefault(key, []).extend([(name, t, os.path.abspath(os.path.join(d, t["image"]))),
+                                             (name + " (q95)", t, os.path.abspath(copy))])
+
+    def run_batch(members, lat, lon, dem, alt, extra, tag):
+        """The rows of one batch (image path -> row)."""
+        k = hashlib.sha1(repr((members[0][2], lat, lon, dem, alt, extra)).encode()).hexdigest()[:12]
+        manifest, out = os.path.join(tmpdir, f"st_{tag}_{k}.csv"), os.path.join(tmpdir, f"st_{tag}_{k}.jsonl")
+        with open(manifest, "w") as f:
+            f.write("image,lat,lon,alt_m,agl_m\n")
+            for _, _, image in members:
+                f.write(f"{image},{lat!r},{lon!r},{alt if alt is not None else ''},{'' if alt is not None else 2}\n")
+        if os.path.exists(out):
+            os.remove(out)
+        p = subprocess.run([binary, "batch", manifest, "--dem", os.path.join(shared, "dem", dem), "-o", out,
+                            "--threads", "1", "--no-progress"] + extra, capture_output=True, text=True)
+        if p.returncode != 0:
+            return {image: {"status": "error", "message": p.stderr.strip()[:120]} for _, _, image in members}
+        return {r["image"]: r for r in map(json.loads, open(out))}
+
+    ok = True
+    vouched = lambda r: "station_vouched_by" in (r.get("position_check") or {})
+    if "stations" in modes:
+        print("\n== batch by station (each photo and its JPEG quality 95 copy), with and without "
+              "--check-every-photo ==")
+        print(f"{'photo':<30}{'every':>11}{'d_az':>8}{'d_pitch':>8}{'ms':>7}{'vouched':>11}{'d_az':>8}{'d_pitch':>8}"
+              f"{'ms':>7}  note")
+        jobs = [(members, every) for members in stations.values() for every in (True, False)]
+        results = list(pool.map(lambda j: run_batch(j[0], j[0][0][1]["lat"], j[0][0][1]["lon"], j[0][0][1]["dem"],
+                                                    j[0][0][1]["alt_m"], ["--check-every-photo"] if j[1] else [],
+                                                    "every" if j[1] else "vouched"), jobs))
+        good = false = differ = light = 0
+        ms = {True: [], False: []}
+        for (members, _), every_rows, vouched_rows in zip(jobs[::2], results[::2], results[1::2]):
+            for name, t, image in members:
+                a, b = every_rows.get(image, {}), vouched_rows.get(image, {})
+                ea, eb = errors(a, t), errors(b, t)
+                for r, e in ((a, ea), (b, eb)):
+                    if e and max(abs(e["daz"]), abs(e["dp"])) > 1.0:
+                        false += 1
+                good += bool(eb and abs(eb["daz"]) <= 0.5 and abs(eb["dp"]) <= 0.5)
+                same = a.get("status") == b.get("status") and (not ea or (abs(ea["daz"] - eb["daz"]) < 1e-9 and
+                                                                           abs(ea["dp"] - eb["dp"]) < 1e-9))
+                differ += not same
+                light += vouched(b)
+                for every, r in ((True, a), (False, b)):
+                    if r.get("timing_ms"):
+                        ms[every].append(r["timing_ms"]["total"])
+                cell = lambda r, e: (f"{r.get('status', '-'):>11}{fmt(e and e['daz'], '8.3f'):>8}"
+                                     f"{fmt(e and e['dp'], '8.3f'):>8}{fmt((r.get('timing_ms') or {}).get('total'), '7.0f'):>7}")
+                print(f"{name:<30}{cell(a, ea)}{cell(b, eb)}  {'vouched' if vouched(b) else ''}"
+                      f"{'' if same else ' DIFFERS'}")
+        print(f"registered within 0.5 deg (vouched run): {good}/{sum(len(m) for m in stations.values())}; "
+              f"rows vouched: {light}; decisions or poses that differ: {differ}; false (> 1 deg): {false}")
+        med = lambda v: statistics.median(v) if v else float("nan")
+        print(f"in-process time per photo: median {med(ms[True]):.0f} ms, total {sum(ms[True]) / 1000:.1f} s with "
+              f"--check-every-photo; median {med(ms[False]):.0f} ms, total {sum(ms[False]) / 1000:.1f} s vouched")
+        if check and (differ or false or good < floors["stations"]):
+            print("FAIL: --modes stations: a decision differs, a registration is false or below the floor")
+            ok = False
+    for mode, offsets in (("wrong-stations", WRONG_OFFSETS), ("ring-stations", RING_OFFSETS)):
+        if mode not in modes:
+            continue
+        probes = []
+        for members in stations.values():
+            t = members[0][1]
+            for bearing, dist in offsets:
+                lat, lon = offset_position(t["lat"], t["lon"], bearing, dist)
+                probes.append((members, f"{dist / 1000:.0f} km at {bearing}", t["dem"], lat, lon, t["alt_m"]))
+            if mode == "wrong-stations":
+                for dem, lat, lon in OTHER_DEMS:
+                    if os.path.exists(os.path.join(shared, "dem", dem)):
+                        probes.append((members, dem, dem, lat, lon, None))
+        outs = list(pool.map(lambda pr: run_batch(pr[0], pr[3], pr[4], pr[2], pr[5], [], mode), probes))
+        # As the ring's probes: a registration more than 1 deg off the truth
+        # (in azimuth or pitch of the centre ray) is false; one within 1 deg
+        # from 2 km away is the skyline fitting from there, reported.
+        bad, near, errs, light, rows = [], [], [], 0, 0
+        for (members, label, *_), out in zip(probes, outs):
+            for name, t, image in members:
+                r = out.get(image, {"status": "error", "message": "missing from the batch output"})
+                rows += 1
+                light += vouched(r)
+                e = errors(r, t)
+                if e and max(abs(e["daz"]), abs(e["dp"])) > 1.0:
+                    bad.append((name, label, e, vouched(r)))
+                elif e:
+                    near.append((name, label, e, vouched(r)))
+                elif r.get("status") == "error":
+                    errs.append((name, label, r.get("message")))
+        print(f"\n== {mode}: every station's batch (photos and copies) from a wrong position or another region's "
+              f"DEM: none may register more than 1 deg off ==")
+        for what, lst in (("FALSE REGISTRATION", bad), ("registered within 1 deg", near)):
+            for n, l, e, v in lst:
+                print(f"  {what}: {n} from {l} ({e['daz']:+.2f}/{e['dp']:+.2f} deg){' vouched' if v else ''}")
+        for n, l, m in errs:
+            print(f"  error: {n} from {l}: {m}")
+        print(f"batches: {len(probes)}; rows: {rows}; registered: {len(bad) + len(near)}, false (> 1 deg): {len(bad)}; "
+              f"rows vouched for: {light}; errors: {len(errs)}")
+        if check and (bad or errs):
+            print(f"FAIL: --modes {mode}: a false registration or an error")
+            ok = False
+    return ok
 
 
 if __name__ == "__main__":

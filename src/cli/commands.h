@@ -83,6 +83,7 @@ struct BatchArgs {
   double step = 0.1;
   bool pinhole = false, no_exif = false, no_progress = false, sea_level_fill = false, refine_position = false;
   bool skylines = false;  // --skylines
+  bool check_every_photo = false;  // --check-every-photo
   std::optional<double> position_sigma;
   double max_image_mpx = 250.0, max_dem_mb = 2048.0;
 };

@@ -61,6 +61,9 @@ void AddBatchCommand(CLI::App& app, BatchArgs& a) {
   c->add_flag("--skylines", a.skylines,
               "Rows also carry \"skyline\" (the skyline JSON; registered photos' read again near the DEM horizon at "
               "the pose, as register --skyline-out)");
+  c->add_flag("--check-every-photo", a.check_every_photo,
+              "Run the position check's wide look on every photo (by default a station's photos skip it once two "
+              "have registered and passed it and none was refused by it)");
   c->add_option("--position-sigma", a.position_sigma,
                 "How far the positions may be off, metres, 1 sigma (default by each row's source, as register's)")
       ->check(CLI::Range(0.0, 100000.0));
@@ -171,6 +174,7 @@ int RunBatch(const BatchArgs& a) {
   o.photo.position_sigma_m = a.position_sigma;
   o.refine_position = a.refine_position;
   o.skylines = a.skylines;
+  o.vouch_stations = !a.check_every_photo;
   o.Check();
   if (!a.overlay_dir.empty()) {
     std::error_code ec;

@@ -252,6 +252,29 @@ nlohmann::json ErrorRow(const BatchItem& item, const std::string& message) {
   return row;
 }
 
+// Whether a station's position has been vouched for by its photos: at
+// least kVouchPhotos registered and passed the full position check (wide
+// look included where their first ring asked for it), and none was refused
+// by it. A wrong position is refused by the check on most photos (the real
+// photos from 2-10 km away: every probe that registered before the check);
+// one that fooled it on one photo is refused on another before the station
+// is vouched for.
+constexpr int kVouchPhotos = 2;
+constexpr size_t kVouchChunk = kVouchPhotos;  // photos registered with the full check at a time ...
+constexpr size_t kVouchTries = 8;             // ... up to this many
+
+struct StationVouch {
+  int passed = 0, refused = 0;
+  void Add(const PhotoRegistration& r) {
+    if (!r.position_check) return;
+    if (!r.position_check->consistent)
+      ++refused;
+    else if (r.registration.registered)
+      ++passed;
+  }
+  bool Vouched() const { return refused == 0 && passed >= kVouchPhotos; }
+};
+
 double SecondsSince(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
@@ -324,7 +347,11 @@ size_t RunBatch(const std::vector<BatchItem>& items, const BatchOptions& options
       for (size_t i : members) emit({&items[i], ErrorRow(items[i], m)});
       continue;
     }
-    pool.ParallelFor(members.size(), [&](size_t m, int) {
+    // A station's position, once vouched for (StationVouch), spares its
+    // later photos the position check's wide look.
+    StationVouch vouch;
+    std::mutex vouch_mutex;
+    auto register_one = [&](size_t m, bool light) {
       const size_t i = members[m];
       const BatchItem& it = items[i];
       const Prepared& p = prepared[i];
@@ -343,8 +370,14 @@ size_t RunBatch(const std::vector<BatchItem>& items, const BatchOptions& options
           po.refine_position = DefaultPositionOptions(p.position.source,
                                                       p.position.alt_m && p.position.source == "exif",
                                                       options.photo.position_sigma_m);
+        if (light && po.check_position) po.check_position->wide_radius_m = 0.0;
         const PhotoRegistration r = RegisterPhoto(*site, image, po, &pool);
+        if (!light) {
+          std::lock_guard<std::mutex> lock(vouch_mutex);
+          vouch.Add(r);
+        }
         nlohmann::json row = RegistrationReport(*site, r, p.position.source, SecondsSince(p0) * 1000.0);
+        if (light && row.contains("position_check")) row["position_check"]["station_vouched_by"] = vouch.passed;
         row["image"] = it.image;
         if (!it.station.empty()) row["station"] = it.station;
         if (!warnings.empty()) row["warnings"] = warnings;
@@ -355,7 +388,22 @@ size_t RunBatch(const std::vector<BatchItem>& items, const BatchOptions& options
       } catch (const std::exception& e) {
         emit({&it, ErrorRow(it, error_message(e, false))});
       }
-    });
+    };
+    // In manifest order, a few photos at a time with the full check until
+    // the station is vouched for, then the rest with the light one (the
+    // same rows whatever the number of threads). A station that cannot be
+    // vouched for any more (a photo refused) or that its first
+    // kVouchTries photos have not vouched for (night, fog: no_match) runs
+    // the rest at once with the full check.
+    size_t next = 0;
+    while (options.vouch_stations && next < members.size() && next < kVouchTries && vouch.refused == 0 &&
+           !vouch.Vouched()) {
+      const size_t n = std::min(kVouchChunk, members.size() - next);
+      pool.ParallelFor(n, [&](size_t k, int) { register_one(next + k, false); });
+      next += n;
+    }
+    const bool light = options.vouch_stations && vouch.Vouched();
+    pool.ParallelFor(members.size() - next, [&](size_t k, int) { register_one(next + k, light); });
   }
   return progress.done;
 }

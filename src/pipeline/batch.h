@@ -83,6 +83,15 @@ struct BatchOptions {
   // registered photo read again near the DEM horizon at its pose
   // (RegisteredSkyline, as register --skyline-out), else the extracted one.
   bool skylines = false;
+  // Photos of one station (one position) share its check: once two of them
+  // have registered and passed the full position check, and none has been
+  // refused by it, the station's later photos skip the check's wide look (the
+  // grid of places out to 4 km, most of a real photo's time on a coarse DEM);
+  // their first ring and pattern still run. Their rows' "position_check"
+  // then carries "station_vouched_by" (how many photos passed). The first
+  // photos go two at a time (up to 8 of them, until vouched for or one is
+  // refused), so a station's first photos use at most two threads.
+  bool vouch_stations = true;
   double max_image_pixels = kDefaultMaxImagePixels;  // larger photos are error rows (ReadImage)
   void Check() const;
 };

@@ -120,6 +120,7 @@ TEST_F(BatchTest, RegistersInParallelLikeOneAtATimeAndTurnsBadPhotosIntoErrorRow
   const auto items = ReadManifest((dir / "m.csv").string());
   BatchOptions o;
   o.dem = {dem};
+  o.vouch_stations = false;  // every photo's check as RegisterPhoto's (the vouch: the next test)
   ThreadPool pool(2);
   std::map<std::string, nlohmann::json> rows;
   std::mutex mu;
@@ -147,6 +148,57 @@ TEST_F(BatchTest, RegistersInParallelLikeOneAtATimeAndTurnsBadPhotosIntoErrorRow
     registered += row["status"] == "registered";
   }
   EXPECT_GE(registered, 2);
+}
+
+// A station's photos after two have registered and passed the position
+// check skip its wide look: their rows are RegisterPhoto's without it, and
+// say who vouched; the first two are RegisterPhoto's own.
+TEST_F(BatchTest, AStationVouchedForByTwoPhotosSparesTheRestTheWideLook) {
+  if (!fs::exists(kDemoDem)) GTEST_SKIP() << "python-matplotlib-data is not installed";
+  const Site site({kDemoDem}, kDemoLat, kDemoLon, SiteOptions{});
+  const auto k = CameraIntrinsics::FromHfov(480, 320, 45.0);
+  const std::vector<CameraPose> poses = ReliefPoses(site, 4);
+  std::string manifest = "image,lat,lon\n";
+  for (int i = 0; i < 4; ++i) {
+    const std::string name = "v" + std::to_string(i) + ".png";
+    cv::imwrite((dir / name).string(), RenderView(site.window(), site.observer(), poses[i], k, RenderOptions{}));
+    manifest += name + "," + std::to_string(kDemoLat) + "," + std::to_string(kDemoLon) + "\n";
+  }
+  Write("m.csv", manifest);
+  BatchOptions o;
+  o.dem = {kDemoDem};
+  ThreadPool pool(2);
+  std::map<std::string, nlohmann::json> rows;
+  std::mutex mu;
+  RunBatch(ReadManifest((dir / "m.csv").string()), o, pool, [&](const BatchResult& r) {
+    std::lock_guard<std::mutex> lock(mu);
+    rows[r.row["image"].get<std::string>()] = r.row;
+  });
+  ASSERT_EQ(rows.size(), 4u);
+  const Site alone({kDemoDem}, std::stod(std::to_string(kDemoLat)), std::stod(std::to_string(kDemoLon)), SiteOptions{});
+  int passed = 0;
+  for (int i = 0; i < 4; ++i) {
+    nlohmann::json row = rows["v" + std::to_string(i) + ".png"];
+    PhotoOptions po;
+    const bool light = i >= 2 && passed >= 2;
+    if (light) po.check_position->wide_radius_m = 0.0;
+    nlohmann::json ref = RegistrationReport(
+        alone, RegisterPhoto(alone, cv::imread((dir / ("v" + std::to_string(i) + ".png")).string()), po), "arguments",
+        0.0);
+    if (light) {
+      ASSERT_TRUE(row.contains("position_check")) << i;
+      EXPECT_EQ(row["position_check"]["station_vouched_by"], 2) << i;
+      EXPECT_EQ(row["position_check"]["wide_places"], 0) << i;
+      row["position_check"].erase("station_vouched_by");
+    } else {
+      EXPECT_FALSE(row.contains("position_check") && row["position_check"].contains("station_vouched_by")) << i;
+      passed += row["status"] == "registered" && row.contains("position_check") &&
+                row["position_check"]["consistent"] == true;
+    }
+    row.erase("timing_ms"), row.erase("image"), ref.erase("timing_ms");
+    EXPECT_EQ(row, ref) << i;
+  }
+  EXPECT_EQ(passed, 2);  // the demo's views register and pass: the vouch was exercised
 }
 
 // --refine-position in a batch: each row is register --refine-position's

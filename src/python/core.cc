@@ -160,7 +160,7 @@ py::object PyRegister(const py::object& image, const PySite& site, std::optional
 BatchOptions MakeBatchOptions(const std::vector<std::string>& dem, const std::string& dem_dir, std::optional<double> hfov,
                               std::optional<std::pair<double, double>> hfov_range, bool pinhole, bool exif, double step,
                               double refraction, double max_distance, bool sea_level_fill, bool refine_position,
-                              std::optional<double> position_sigma, bool skylines) {
+                              std::optional<double> position_sigma, bool skylines, bool check_every_photo) {
   BatchOptions o;
   o.dem = dem;
   if (!dem_dir.empty()) {
@@ -177,6 +177,7 @@ BatchOptions MakeBatchOptions(const std::vector<std::string>& dem, const std::st
   o.refine_position = refine_position;
   o.photo.position_sigma_m = position_sigma;
   o.skylines = skylines;
+  o.vouch_stations = !check_every_photo;
   o.Check();
   return o;
 }
@@ -337,11 +338,12 @@ PYBIND11_MODULE(_core, m) {
       [](const py::list& rows, const std::string& base_dir, const std::vector<std::string>& dem,
          const std::string& dem_dir, std::optional<double> hfov, std::optional<std::pair<double, double>> hfov_range,
          bool pinhole, bool exif, double step, double refraction, double max_distance, bool sea_level_fill,
-         bool refine_position, std::optional<double> position_sigma, bool skylines, int threads) {
+         bool refine_position, std::optional<double> position_sigma, bool skylines, bool check_every_photo,
+         int threads) {
         const std::vector<BatchItem> items = ManifestFromJson(FromPy(rows), base_dir, "rows");
         const BatchOptions o =
             MakeBatchOptions(dem, dem_dir, hfov, hfov_range, pinhole, exif, step, refraction, max_distance, sea_level_fill,
-                             refine_position, position_sigma, skylines);
+                             refine_position, position_sigma, skylines, check_every_photo);
         std::vector<std::pair<size_t, nlohmann::json>> out;
         {
           py::gil_scoped_release release;
@@ -361,7 +363,9 @@ PYBIND11_MODULE(_core, m) {
       py::arg("hfov") = py::none(), py::arg("hfov_range") = py::none(), py::arg("pinhole") = false,
       py::arg("exif") = true, py::arg("step") = kRegistrationStepDeg, py::arg("refraction") = kDefaultRefraction,
       py::arg("max_distance") = 100'000.0, py::arg("sea_level_fill") = false, py::arg("refine_position") = false,
-      py::arg("position_sigma") = py::none(), py::arg("skylines") = false, py::arg("threads") = 0,
+      py::arg("position_sigma") = py::none(), py::arg("skylines") = false, py::arg("check_every_photo") = false,
+      py::arg("threads") = 0,
       "Registers manifest rows (dicts with the manifest's columns) as `horizonreg batch` does: one row dict per "
-      "photo, in the rows' order; skylines adds each row's \"skyline\" (as batch --skylines).");
+      "photo, in the rows' order; skylines adds each row's \"skyline\" (as batch --skylines); check_every_photo "
+      "runs the position check's wide look on every photo (as batch --check-every-photo).");
 }

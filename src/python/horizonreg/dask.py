@@ -23,7 +23,7 @@ import sys
 from . import _core
 
 _OPTIONS = ("hfov", "hfov_range", "pinhole", "exif", "step", "refraction", "max_distance", "sea_level_fill",
-            "refine_position", "position_sigma", "skylines")
+            "refine_position", "position_sigma", "skylines", "check_every_photo")
 
 
 def _station_key(item):
@@ -57,7 +57,8 @@ def register_archive(manifest, dem=(), dem_dir="", stations="", client=None, sch
     """Registers every photo of `manifest` on a dask cluster: `client` if given, else a Client of
     `scheduler` (an address), else a LocalCluster of n_workers processes. `options` are
     batch_rows's (hfov, hfov_range, pinhole, exif, step, refraction, max_distance,
-    sea_level_fill, refine_position, position_sigma, skylines). Returns the rows (dicts) in manifest order."""
+    sea_level_fill, refine_position, position_sigma, skylines, check_every_photo). Returns the rows (dicts) in
+    manifest order."""
     unknown = set(options) - set(_OPTIONS)
     if unknown:
         raise ValueError(f"register_archive: unknown option(s) {sorted(unknown)}")
@@ -108,11 +109,14 @@ def main(argv=None):
                    help="also estimate each photo's position (as horizonreg batch --refine-position)")
     p.add_argument("--skylines", action="store_true",
                    help="rows also carry each photo's skyline (as horizonreg batch --skylines)")
+    p.add_argument("--check-every-photo", action="store_true",
+                   help="the position check's wide look on every photo (as horizonreg batch --check-every-photo)")
     a = p.parse_args(argv)
     try:
         rows = register_archive(a.manifest, dem=a.dem, dem_dir=a.dem_dir, stations=a.stations, scheduler=a.scheduler,
                                 n_workers=a.workers, threads_per_worker=a.threads_per_worker,
-                                refine_position=a.refine_position, skylines=a.skylines)
+                                refine_position=a.refine_position, skylines=a.skylines,
+                                check_every_photo=a.check_every_photo)
     except (ValueError, OSError) as e:
         print(f"horizonreg.dask: {e}", file=sys.stderr)
         return 2

@@ -199,6 +199,18 @@ def test_batch_rows_and_dask_equal_the_batch_command(views, tmp_path):
                                  base_dir=str(tmp_path), dem=[JACKSBORO], threads=2)
     assert [r["image"] for r in rows] == [i["image"] for i in items]
     assert {r["image"]: _strip(r) for r in rows} == ref
+    # check_every_photo: no row vouched for by its station; the vouched rows
+    # are these but for their position check.
+    every = horizonreg.batch_rows([{"image": i["image"], "lat": i["lat"], "lon": i["lon"]} for i in items],
+                                  base_dir=str(tmp_path), dem=[JACKSBORO], threads=2, check_every_photo=True)
+    assert not any("station_vouched_by" in (r.get("position_check") or {}) for r in every)
+    for r in every:
+        v = ref[r["image"]]
+        if "station_vouched_by" in (v.get("position_check") or {}):
+            assert {k: x for k, x in _strip(r).items() if k != "position_check"} == \
+                {k: x for k, x in v.items() if k != "position_check"}
+        else:
+            assert _strip(r) == v
 
     pytest.importorskip("dask.distributed")
     from horizonreg.dask import register_archive
