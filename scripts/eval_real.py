@@ -69,14 +69,17 @@ Modes (each a per-photo table and a summary):
             The truth is the ray through the crop's centre by the author's
             full camera model. Counts the photos within 0.5 deg (--floors
             crop=N) and the false ones (0)
-  stations  (not in the default set; seconds) `batch` over every photo and
-            its JPEG quality 95 copy, the photos of a station (one position)
-            in one run, with and without --check-every-photo: once two photos
-            of a station have passed the position check (and none was
-            refused), the rest skip its wide look. Per photo the status and
-            error both ways; fails when a decision or pose differs between
-            the two runs or a registration is false, or below --floors
-            stations=N (photos and copies within 0.5 deg)
+  stations  (not in the default set; seconds) `batch` over every photo, its
+            JPEG quality 95 copy and its pixels alone (PNG, no EXIF), the
+            photos of a station (one position) in one run, with and without
+            --check-every-photo: once two photos of a station have passed
+            the position check (and none was refused), the rest skip its wide
+            look, and one with no opening angle of its own that found no pose
+            is tried again within the station camera's. Per photo the status
+            and error both ways; fails when a decision or pose differs
+            between the two runs (but for those registered within the
+            station's opening angle) or a registration is false, or below
+            --floors stations=N (photos and copies within 0.5 deg)
   wrong-stations  (not in the default set) every station's batch (photos and
             copies) from the wrong probes' positions and the other regions'
             DEMs: none may register more than 1 deg off (as the ring's probes)
@@ -921,17 +924,21 @@ def stations_modes(binary, shared, photos, modes, tmpdir, pool, floors, check):
     cv2 = opencv_for("stations")
     if cv2 is None:
         return False
-    # Each photo and its copy at JPEG quality 95 (EXIF kept), grouped by
-    # station (its position), in the order of the photos.
+    # Each photo, its copy at JPEG quality 95 (EXIF kept) and its pixels
+    # alone (PNG, no EXIF: a webcam's), grouped by station (its position),
+    # in the order of the photos.
     stations = collections.OrderedDict()
     for name, t, d in photos:
         copy = os.path.join(tmpdir, name + ".station-q95.jpg")
-        if not write_jpeg_with_exif(cv2, cv2.imread(os.path.join(d, t["image"])), os.path.join(d, t["image"]), copy):
+        bare = os.path.join(tmpdir, name + ".station-noexif.png")
+        pixels = cv2.imread(os.path.join(d, t["image"]))
+        if not write_jpeg_with_exif(cv2, pixels, os.path.join(d, t["image"]), copy) or not cv2.imwrite(bare, pixels):
             print(f"FAIL: cannot write the copies of --modes stations")
             return False
         key = (t["lat"], t["lon"], t["alt_m"], t["dem"])
         stations.setdefault(key, []).extend([(name, t, os.path.abspath(os.path.join(d, t["image"]))),
-                                             (name + " (q95)", t, os.path.abspath(copy))])
+                                             (name + " (q95)", t, os.path.abspath(copy)),
+                                             (name + " (no EXIF)", t, os.path.abspath(bare))])
 
     def run_batch(members, lat, lon, dem, alt, extra, tag):
         """The rows of one batch (image path -> row)."""
@@ -952,15 +959,15 @@ def stations_modes(binary, shared, photos, modes, tmpdir, pool, floors, check):
     ok = True
     vouched = lambda r: "station_vouched_by" in (r.get("position_check") or {})
     if "stations" in modes:
-        print("\n== batch by station (each photo and its JPEG quality 95 copy), with and without "
-              "--check-every-photo ==")
+        print("\n== batch by station (each photo, its JPEG quality 95 copy and its EXIF-less copy), with and "
+              "without --check-every-photo ==")
         print(f"{'photo':<30}{'every':>11}{'d_az':>8}{'d_pitch':>8}{'ms':>7}{'vouched':>11}{'d_az':>8}{'d_pitch':>8}"
               f"{'ms':>7}  note")
         jobs = [(members, every) for members in stations.values() for every in (True, False)]
         results = list(pool.map(lambda j: run_batch(j[0], j[0][0][1]["lat"], j[0][0][1]["lon"], j[0][0][1]["dem"],
                                                     j[0][0][1]["alt_m"], ["--check-every-photo"] if j[1] else [],
                                                     "every" if j[1] else "vouched"), jobs))
-        good = false = differ = light = 0
+        good = false = differ = light = gained = 0
         ms = {True: [], False: []}
         for (members, _), every_rows, vouched_rows in zip(jobs[::2], results[::2], results[1::2]):
             for name, t, image in members:
@@ -972,6 +979,11 @@ def stations_modes(binary, shared, photos, modes, tmpdir, pool, floors, check):
                 good += bool(eb and abs(eb["daz"]) <= 0.5 and abs(eb["dp"]) <= 0.5)
                 same = a.get("status") == b.get("status") and (not ea or (abs(ea["daz"] - eb["daz"]) < 1e-9 and
                                                                            abs(ea["dp"] - eb["dp"]) < 1e-9))
+                # registered only within the station camera's opening angle
+                by_station = (not ea and eb and a.get("status") == "no_match" and
+                              (b.get("hfov_search_deg") or [None] * 3)[2] == "station")
+                gained += bool(by_station)
+                same = same or by_station
                 differ += not same
                 light += vouched(b)
                 for every, r in ((True, a), (False, b)):
@@ -980,9 +992,10 @@ def stations_modes(binary, shared, photos, modes, tmpdir, pool, floors, check):
                 cell = lambda r, e: (f"{r.get('status', '-'):>11}{fmt(e and e['daz'], '8.3f'):>8}"
                                      f"{fmt(e and e['dp'], '8.3f'):>8}{fmt((r.get('timing_ms') or {}).get('total'), '7.0f'):>7}")
                 print(f"{name:<30}{cell(a, ea)}{cell(b, eb)}  {'vouched' if vouched(b) else ''}"
-                      f"{'' if same else ' DIFFERS'}")
+                      f"{' (station opening angle)' if by_station else ''}{'' if same else ' DIFFERS'}")
         print(f"registered within 0.5 deg (vouched run): {good}/{sum(len(m) for m in stations.values())}; "
-              f"rows vouched: {light}; decisions or poses that differ: {differ}; false (> 1 deg): {false}")
+              f"rows vouched: {light}; registered only within the station camera's opening angle: {gained}; "
+              f"other decisions or poses that differ: {differ}; false (> 1 deg): {false}")
         med = lambda v: statistics.median(v) if v else float("nan")
         print(f"in-process time per photo: median {med(ms[True]):.0f} ms, total {sum(ms[True]) / 1000:.1f} s with "
               f"--check-every-photo; median {med(ms[False]):.0f} ms, total {sum(ms[False]) / 1000:.1f} s vouched")

@@ -62,8 +62,9 @@ void AddBatchCommand(CLI::App& app, BatchArgs& a) {
               "Rows also carry \"skyline\" (the skyline JSON; registered photos' read again near the DEM horizon at "
               "the pose, as register --skyline-out)");
   c->add_flag("--check-every-photo", a.check_every_photo,
-              "Run the position check's wide look on every photo (by default a station's photos skip it once two "
-              "have registered and passed it and none was refused by it)");
+              "Register every photo on its own, the position check's wide look included (by default, once two "
+              "photos of a station have registered and passed the check and none was refused, the rest skip its wide "
+              "look and, finding no pose, are tried again within the station camera's opening angle)");
   c->add_option("--position-sigma", a.position_sigma,
                 "How far the positions may be off, metres, 1 sigma (default by each row's source, as register's)")
       ->check(CLI::Range(0.0, 100000.0));

@@ -12,6 +12,7 @@
 #include <sstream>
 #include <unordered_map>
 
+#include "camera/camera.h"
 #include "pipeline/camera_file.h"
 #include "pipeline/image_io.h"
 #include "pipeline/position.h"
@@ -265,14 +266,18 @@ constexpr size_t kVouchTries = 8;             // ... up to this many
 
 struct StationVouch {
   int passed = 0, refused = 0;
+  std::vector<std::pair<double, double>> views;  // the passed photos' opening angles and aspect ratios
   void Add(const PhotoRegistration& r) {
     if (!r.position_check) return;
-    if (!r.position_check->consistent)
+    if (!r.position_check->consistent) {
       ++refused;
-    else if (r.registration.registered)
+    } else if (r.registration.registered) {
       ++passed;
+      views.emplace_back(HfovFromFocalDeg(r.registration.focal_px, r.width), static_cast<double>(r.width) / r.height);
+    }
   }
   bool Vouched() const { return refused == 0 && passed >= kVouchPhotos; }
+  std::optional<double> OpeningAngle(double aspect) const { return AgreedOpeningAngle(views, aspect, kVouchPhotos); }
 };
 
 double SecondsSince(std::chrono::steady_clock::time_point t0) {
@@ -280,6 +285,17 @@ double SecondsSince(std::chrono::steady_clock::time_point t0) {
 }
 
 }  // namespace
+
+std::optional<double> AgreedOpeningAngle(const std::vector<std::pair<double, double>>& views, double aspect,
+                                         int min_views) {
+  std::vector<double> h;
+  for (const auto& [hfov, a] : views)
+    if (std::abs(a / aspect - 1.0) <= 0.01 && hfov > 0.0) h.push_back(hfov);
+  if (h.empty() || static_cast<int>(h.size()) < min_views) return std::nullopt;
+  std::sort(h.begin(), h.end());
+  if (!(h.back() <= 1.02 * h.front())) return std::nullopt;
+  return h[(h.size() - 1) / 2];
+}
 
 size_t RunBatch(const std::vector<BatchItem>& items, const BatchOptions& options, ThreadPool& pool,
                 const std::function<void(const BatchResult&)>& on_row,
@@ -371,7 +387,24 @@ size_t RunBatch(const std::vector<BatchItem>& items, const BatchOptions& options
                                                       p.position.alt_m && p.position.source == "exif",
                                                       options.photo.position_sigma_m);
         if (light && po.check_position) po.check_position->wide_radius_m = 0.0;
-        const PhotoRegistration r = RegisterPhoto(*site, image, po, &pool);
+        PhotoRegistration r = RegisterPhoto(*site, image, po, &pool);
+        // A vouched station's photo that found no pose with the opening
+        // angle unknown or from its EXIF (+-10%), none given: again within
+        // the station camera's (+-3%, as --hfov), which rules out the rivals
+        // at other opening angles (zoomed-in views of other ranges). Not
+        // one the position check refused: that answer stands.
+        const bool refused = r.position_check && !r.position_check->consistent;
+        if (light && !r.registration.registered && !refused && !po.hfov_deg && !po.hfov_range_deg && !po.camera &&
+            !po.initial)
+          if (const std::optional<double> hfov = vouch.OpeningAngle(static_cast<double>(image.cols) / image.rows)) {
+            PhotoOptions again = po;
+            again.hfov_deg = *hfov;
+            PhotoRegistration s = RegisterPhoto(*site, image, again, &pool);
+            if (s.registration.registered) {
+              s.fov_source = "station";
+              r = std::move(s);
+            }
+          }
         if (!light) {
           std::lock_guard<std::mutex> lock(vouch_mutex);
           vouch.Add(r);

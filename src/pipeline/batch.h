@@ -11,6 +11,7 @@
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "pipeline/image_io.h"
@@ -90,7 +91,11 @@ struct BatchOptions {
   // their first ring and pattern still run. Their rows' "position_check"
   // then carries "station_vouched_by" (how many photos passed). The first
   // photos go two at a time (up to 8 of them, until vouched for or one is
-  // refused), so a station's first photos use at most two threads.
+  // refused), so a station's first photos use at most two threads. A later
+  // photo that finds no pose with its opening angle unknown or from its EXIF
+  // (none given, no camera file, no initial pose) is registered again within
+  // the station camera's (AgreedOpeningAngle of the photos that passed,
+  // +-3% as --hfov); its row then says "station" in "hfov_search_deg".
   bool vouch_stations = true;
   double max_image_pixels = kDefaultMaxImagePixels;  // larger photos are error rows (ReadImage)
   void Check() const;
@@ -112,6 +117,14 @@ struct BatchResult {
   const Site* site = nullptr;
   const PhotoRegistration* registration = nullptr;
 };
+
+// A fixed camera's opening angle from its registered photos (`views`:
+// opening angle and aspect ratio, width over height, per photo): the median
+// (the lower of the middle two) of those of this aspect ratio (within 1%)
+// when at least min_views of them agree within 2%; none when fewer, or when
+// they disagree (a zoom that moved).
+std::optional<double> AgreedOpeningAngle(const std::vector<std::pair<double, double>>& views, double aspect,
+                                         int min_views);
 
 // Registers `items` on `pool`, station by station (the items sharing a
 // position share a Site, built once). Never throws for a bad photo, sensors

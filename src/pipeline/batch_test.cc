@@ -201,6 +201,20 @@ TEST_F(BatchTest, AStationVouchedForByTwoPhotosSparesTheRestTheWideLook) {
   EXPECT_EQ(passed, 2);  // the demo's views register and pass: the vouch was exercised
 }
 
+// The station camera's opening angle: the photos of the same aspect ratio
+// that agree within 2%, at least as many as asked.
+TEST(AgreedOpeningAngle, TheMedianOfAgreeingPhotosOfTheSameAspect) {
+  const std::vector<std::pair<double, double>> views = {{51.0, 1.5}, {51.6, 1.5}, {51.3, 1.502}, {38.0, 1.0}};
+  EXPECT_DOUBLE_EQ(*AgreedOpeningAngle(views, 1.5, 2), 51.3);
+  EXPECT_DOUBLE_EQ(*AgreedOpeningAngle(views, 1.5, 3), 51.3);
+  EXPECT_FALSE(AgreedOpeningAngle(views, 1.5, 4));          // too few of that aspect
+  EXPECT_FALSE(AgreedOpeningAngle(views, 1.0, 2));          // one portrait photo
+  EXPECT_FALSE(AgreedOpeningAngle(views, 4.0 / 3.0, 1));    // none of that aspect
+  EXPECT_DOUBLE_EQ(*AgreedOpeningAngle(views, 1.0, 1), 38.0);
+  EXPECT_FALSE(AgreedOpeningAngle({{40.0, 1.5}, {41.0, 1.5}}, 1.5, 2));  // 2.5% apart: the zoom moved
+  EXPECT_DOUBLE_EQ(*AgreedOpeningAngle({{40.0, 1.5}, {40.7, 1.5}}, 1.5, 2), 40.0);
+}
+
 // --refine-position in a batch: each row is register --refine-position's
 // report (the "position" block included), and the CSV carries the refined
 // position.
