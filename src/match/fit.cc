@@ -360,6 +360,7 @@ FitStats ComputeFitStats(const Scorer& scorer, const Pose4& p, const std::vector
     w_all += info;
     if (!(chi2 <= kGateChi2)) {
       ++outliers;  // a miss beyond even a wide tolerance refutes the pose, however little the column informs
+      ++(r > 0.0 ? s.outliers_below : s.outliers_above);
       continue;
     }
     w_in += info;

@@ -147,6 +147,10 @@ struct FitStats {
   // dominates their variance (a coarse DEM, near terrain, a zoomed-in view),
   // each counting when the pixel noise does; times the information weight.
   double independent_inliers = 0.0;
+  // The outliers by side: the skyline below the DEM horizon (terrain read
+  // as sky: haze, snow, cloud in front of a ridge) or above it (sky read as
+  // terrain, or something nearer than the DEM shows).
+  int outliers_below = 0, outliers_above = 0;
   double rms_px = NAN;           // raw residuals of the inliers
   // The inliers' chi^2 against what the model expects of them, as a pixel
   // RMS: sigma sqrt(sum chi^2 / sum E[chi^2]) (sigma for a pose whose

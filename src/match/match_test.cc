@@ -317,6 +317,33 @@ TEST(Register, TheMatchingReadsTheClearerEdgeUnderARaisedRidge) {
   EXPECT_LT(Register(s, p, {}).inlier_fraction, 0.8);
 }
 
+// Haze over 43% of the range: the skyline there reads the sky 40 px down
+// (terrain taken for sky). The pose is refused, and the misses are counted
+// on their side of the DEM horizon, which the message names; pushed up
+// instead (a cloud bank read as terrain), they lie above it.
+TEST(Register, TheMissesAreCountedByTheirSideOfTheDemHorizon) {
+  const HorizonProfile p = SyntheticHorizon(0.25);
+  const CameraPose pose{200.0, 0.8, 1.2};
+  const auto k = CameraIntrinsics::FromHfov(1024, 683, 45.0);
+  const Skyline clear = SkylineOf(p, pose, k);
+  Skyline s = clear;
+  for (int c = 580; c < 1024; ++c) s.y[c] += 40.0;
+  const Registration below = Register(s, p, {});
+  EXPECT_FALSE(below.registered);
+  EXPECT_GT(below.outliers_below, 3 * std::max(1, below.outliers_above)) << below.message;
+  EXPECT_NE(below.message.find("lie below it"), std::string::npos) << below.message;
+  s = clear;
+  for (int c = 580; c < 1024; ++c) s.y[c] -= 40.0;
+  const Registration above = Register(s, p, {});
+  EXPECT_FALSE(above.registered);
+  EXPECT_GT(above.outliers_above, 3 * std::max(1, above.outliers_below)) << above.message;
+  EXPECT_NE(above.message.find("lie above it"), std::string::npos) << above.message;
+  // The clear skyline: registered, no misses either side.
+  const Registration r = Register(clear, p, {});
+  ASSERT_TRUE(r.registered) << r.message;
+  EXPECT_EQ(r.outliers_below + r.outliers_above, 0);
+}
+
 // The hypotheses and candidates are shared out among threads; any count
 // gives the same answer, to the bit.
 TEST(Register, SameResultForAnyThreadCount) {

@@ -137,6 +137,19 @@ bool WithinPrior(const RegistrationOptions& o, const CameraPose& pose) {
 
 namespace {
 
+// Which side of the DEM horizon most of the best pose's misses lie on, for
+// the no-match message: what the user can look for in the photo (a wrong
+// pose's misses fall either side).
+std::string MissesSide(int below, int above) {
+  std::ostringstream m;
+  if (below >= 3 * std::max(1, above))
+    m << "; most misses (" << below << " columns) lie below it: terrain read as sky (haze, snow, cloud)?";
+  else if (above >= 3 * std::max(1, below))
+    m << "; most misses (" << above << " columns) lie above it: cloud read as terrain, or something nearer than "
+      << "the DEM shows (trees, buildings)?";
+  return m.str();
+}
+
 struct Candidate {
   Pose4 pose;
   double cost = INFINITY;
@@ -245,6 +258,8 @@ void FinishRegistration(const Scorer& scorer, const ImageFrame& frame, std::vect
   out.inlier_fraction = stats.inlier_fraction;
   out.informative_columns = stats.informative_columns;
   out.independent_inliers = stats.independent_inliers;
+  out.outliers_below = stats.outliers_below;
+  out.outliers_above = stats.outliers_above;
   out.rms_px = stats.rms_px;
   out.model_rms_px = stats.model_rms_px;
   const double scale = out.dem.flattening_scale;
@@ -268,7 +283,8 @@ void FinishRegistration(const Scorer& scorer, const ImageFrame& frame, std::vect
     why << "the horizon seen is too near or the DEM too coarse to tell the pose (informative columns "
         << std::lround(100.0 * stats.informative_columns / width) << "% of the width)";
   else if (out.inlier_fraction < options.min_inlier_fraction)
-    why << "only " << std::lround(100 * out.inlier_fraction) << "% of the skyline fits the DEM horizon";
+    why << "only " << std::lround(100 * out.inlier_fraction) << "% of the skyline fits the DEM horizon"
+        << MissesSide(stats.outliers_below, stats.outliers_above);
   else if (!(stats.model_rms_px <= options.max_rms_px * px_scale))
     why << "residual " << stats.model_rms_px << " px too large";
   else if (out.ambiguity_ratio < options.min_ambiguity_ratio)

@@ -177,6 +177,7 @@ struct Registration {
   double second_cost = NAN;                  // that alternative's mean cost (chi^2 and tolerance width)
   double informative_columns = 0.0;  // columns whose tolerance lets them inform (near terrain counts little)
   double independent_inliers = 0.0;  // independent DEM samples behind the inliers (FitStats)
+  int outliers_below = 0, outliers_above = 0;  // outlier columns: the skyline below / above the DEM horizon
   // independent_inliers * (second_cost - cost) / 2 (second_cost = 9, all
   // outliers, when nothing else was searched): nats in favour of the pose.
   double evidence_nats = 0.0;

@@ -399,9 +399,11 @@ size_t RunBatch(const std::vector<BatchItem>& items, const BatchOptions& options
           if (const std::optional<double> hfov = vouch.OpeningAngle(static_cast<double>(image.cols) / image.rows)) {
             PhotoOptions again = po;
             again.hfov_deg = *hfov;
+            again.skyline = r.skyline;  // the same photo's: not extracted again (its time counted once)
             PhotoRegistration s = RegisterPhoto(*site, image, again, &pool);
             if (s.registration.registered) {
               s.fov_source = "station";
+              s.skyline_ms = r.skyline_ms;
               r = std::move(s);
             }
           }

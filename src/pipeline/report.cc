@@ -89,6 +89,8 @@ nlohmann::json RegistrationReport(const Site& site, const PhotoRegistration& pho
                    {"second_misfit", Rounded(r.second_misfit, 3)},
                    {"informative_columns", Rounded(r.informative_columns, 1)},
                    {"independent_inliers", Rounded(r.independent_inliers, 1)},
+                   {"outliers_below", r.outliers_below},
+                   {"outliers_above", r.outliers_above},
                    {"nats", Rounded(r.evidence_nats, 1)}};
   j["hypotheses"] = r.hypotheses;
   auto candidate = [&](const PoseCandidate& c) {
