@@ -124,6 +124,7 @@ int RunLocate(const LocateArgs& a) {
                  {"profile_distinctiveness", finite_or_null(r.distinctiveness)},
                  {"distinctiveness", finite_or_null(r.registration_distinctiveness)},
                  {"viewpoints", {{"coarse", r.coarse_viewpoints}, {"fine", r.fine_viewpoints}}},
+                 {"position_check_followed", r.followed_checks},
                  {"candidates", cands},
                  {"message", r.message}};
   j["timing_ms"]["locate"] = {{"dem", Rounded(r.dem_ms, 1)},       {"skyline", Rounded(r.skyline_ms, 1)},

@@ -85,6 +85,10 @@ struct LocateResult {
   // 3 grid steps away) over the answer's (inf when none): the latter decides.
   double distinctiveness = 0.0, registration_distinctiveness = 0.0;
   double grid_m = 0.0;
+  // The answer's position check refused it for another place: what that
+  // place gave when polished (registered there instead, or the answer
+  // registered without the check), one line each.
+  std::vector<std::string> followed_checks;
   double dem_ms = 0.0, skyline_ms = 0.0, coarse_ms = 0.0, fine_ms = 0.0, register_ms = 0.0;
   // The registration at the answer (or at the best tried viewpoint), and its site.
   std::unique_ptr<Site> site;
