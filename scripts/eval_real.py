@@ -114,6 +114,15 @@ Modes (each a per-photo table and a summary):
             false ones (0)
   wrong-jpeg30  (not in the default set) the wrong probes on the quality-30
             copies
+  photometric  (not in the default set; about 2 minutes) plain on each photo
+            changed as another camera, exposure or weather would change it:
+            1.7 stops darker, 1.3 stops brighter (clipped), sensor noise,
+            soft focus, vignetting, a warm and a cool white balance, a grey
+            veil (JPEG quality 95, EXIF kept). Per change: the photos within
+            0.5 deg (--floors photometric=N, each change; default 0), the
+            false ones (0) and the skyline's traced columns within 2 px
+  wrong-photometric  (not in the default set; minutes) the wrong probes on
+            every photometric copy
   jpeg30-skyline  (not in the default set; seconds) the skyline of the
             quality-30 copies against the hand trace, as skyline (--floors
             jpeg30-skyline=F)
@@ -552,6 +561,103 @@ def skyline_table(binary, photos, thin_sky_px=None, shared=None, grey=False, jpe
     return w, g
 
 
+# The photometric mode's changes: what other cameras, exposures and weather
+# do to the same scene (applied in linear light where light is scaled).
+def _linear(np, im):
+    return (im.astype(np.float32) / 255.0) ** 2.2
+
+
+def _encoded(np, x):
+    return np.clip(255.0 * np.clip(x, 0.0, 1.0) ** (1 / 2.2) + 0.5, 0, 255).astype(np.uint8)
+
+
+def _vignetted(np, im):
+    h, w = im.shape[:2]
+    y, x = np.mgrid[0:h, 0:w]
+    r = np.hypot((x - w / 2) / (w / 2), (y - h / 2) / (w / 2))
+    return _encoded(np, _linear(np, im) * (np.cos(np.arctan(0.9 * r)) ** 4)[..., None])
+
+
+PHOTOMETRIC = [
+    ("dark", "1.7 stops under", lambda cv2, np, im: _encoded(np, _linear(np, im) * 0.3)),
+    ("bright", "1.3 stops over (clipped)", lambda cv2, np, im: _encoded(np, _linear(np, im) * 2.5)),
+    ("noise", "sensor noise (sigma 6 of 255)", lambda cv2, np, im: np.clip(
+        im.astype(np.float32) + np.random.default_rng(7).normal(0.0, 6.0, im.shape), 0, 255).astype(np.uint8)),
+    ("blur", "soft focus (Gaussian sigma 1.5 px)", lambda cv2, np, im: cv2.GaussianBlur(im, (0, 0), 1.5)),
+    ("vignette", "vignetting (cos^4, 0.9 rad at the corners' width)", lambda cv2, np, im: _vignetted(np, im)),
+    ("warm", "warm white balance (R x1.3, B x0.7)", lambda cv2, np, im: _encoded(
+        np, _linear(np, im) * np.array([0.7, 1.0, 1.3], np.float32))),
+    ("cool", "cool white balance (B x1.3, R x0.75)", lambda cv2, np, im: _encoded(
+        np, _linear(np, im) * np.array([1.3, 1.0, 0.75], np.float32))),
+    ("veil", "a grey veil (flare, a dirty window: 60% scene, 40% grey 200)", lambda cv2, np, im: np.clip(
+        0.6 * im.astype(np.float32) + 80.0, 0, 255).astype(np.uint8)),
+]
+
+
+def photometric_modes(binary, shared, photos, modes, tmpdir, pool, floors, check):
+    """The photometric and wrong-photometric modes (see the usage); False
+    when a check failed."""
+    cv2 = opencv_for("photometric")
+    if cv2 is None:
+        return not check
+    import numpy as np
+    ok = True
+    copies = {}
+    for key, _, change in PHOTOMETRIC:
+        for name, t, d in photos:
+            path = os.path.join(tmpdir, f"{name}.{key}.jpg")
+            source = os.path.join(d, t["image"])
+            if not write_jpeg_with_exif(cv2, change(cv2, np, cv2.imread(source)), source, path):
+                print(f"FAIL: cannot write the {key} copy of {name}")
+                return False
+            copies[(name, key)] = path
+    if "photometric" in modes:
+        print("\n== no prior, each photo changed as another camera, exposure or weather would (JPEG 95, EXIF kept) ==")
+        print(f"{'change':<10}{'within 0.5':>11}{'false':>6}{'sky<=2px':>9}{'given':>7}  not registered")
+        for key, what, _ in PHOTOMETRIC:
+            def run(p):
+                r = register(binary, shared, p[2], p[0], p[1], [], image=copies[(p[0], key)])
+                with tempfile.TemporaryDirectory() as tmp:
+                    subprocess.run([binary, "skyline", copies[(p[0], key)], "--json", os.path.join(tmp, "s.json")],
+                                   check=True, capture_output=True)
+                    s = json.load(open(os.path.join(tmp, "s.json")))
+                return p, r, s
+            good, false, traced, given, within, missed = 0, [], 0, 0, 0, []
+            for (name, t, _), r, s in pool.map(run, photos):
+                e = errors(r, t)
+                if e and max(abs(e["daz"]), abs(e["dp"])) <= 0.5:
+                    good += 1
+                elif e and max(abs(e["daz"]), abs(e["dp"])) > 1.0:
+                    false.append(name)
+                else:
+                    missed.append(name)
+                for x, y in enumerate(t["skyline_row"]):
+                    if y is None:
+                        continue
+                    traced += 1
+                    if s["y"][x] is not None:
+                        given += 1
+                        within += abs(s["y"][x] - y) <= 2
+            w = within / traced if traced else float("nan")
+            print(f"{key:<10}{good:>8}/{len(photos):<2}{len(false):>6}{100 * w:>8.1f}%{100 * given / max(traced, 1):>6.1f}%"
+                  f"  {' '.join(missed)}{' FALSE: ' + ' '.join(false) if false else ''}")
+            if check and (good < floors.get("photometric", 0) or false):
+                print(f"FAIL: photometric {key} ({what}) misses its floor or has a false registration")
+                ok = False
+    if "wrong-photometric" in modes:
+        def probe(pr):
+            (name, t, d), label, dem, lat, lon = pr
+            out = []
+            for key, _, _ in PHOTOMETRIC:
+                out.append((name, f"{label}, {key}", register(binary, shared, d, name, t, [], dem=dem, lat=lat,
+                                                              lon=lon, alt=dem is None, image=copies[(name, key)])))
+            return out
+        out = [o for group in pool.map(probe, false_probe_list(photos, shared)) for o in group]
+        if not report_wrong("wrong position (2-10 km away) or another region's DEM, every photometric change", out):
+            ok = ok and not check
+    return ok
+
+
 def main():
     argv = sys.argv[1:]
     opt = lambda k, d=None: argv[argv.index(k) + 1] if k in argv else d
@@ -564,7 +670,7 @@ def main():
               "registered-skyline": 0.9, "registered-skyline-given": 0.95,
               "thin-given": 0.95, "ring": 0, "ring-camera": 0, "ring-initial": 0, "ring-sensors": 0, "ring-noexif": 0, "ring-hfov": 0, "ring-range": 0, "ring-noalt": 0, "ring-noalt-hfov": 0, "hfov": 12,
               "sensors": 0, "noexif": 0, "reencode": 0, "gray": 0, "upscale2": 0, "upscale4": 0, "jpeg50": 0, "jpeg30": 0, "crop": 0, "crop-narrow": 0, "stations": 0, "turned": 0, "banner": 0, "gray-skyline": 0.0,
-              "jpeg30-skyline": 0.0}
+              "jpeg30-skyline": 0.0, "photometric": 0}
     for kv in (opt("--floors") or "").split(","):
         if "=" in kv:
             k, v = kv.split("=")
@@ -911,6 +1017,9 @@ def main():
             print(f"  error: {n} from {l} ({pe or 'defaults'}): {m}")
         if check and (false_runs or errs):
             print("FAIL: a perturbed run registered falsely or failed")
+            failed = True
+    if any(m in modes for m in ("photometric", "wrong-photometric")):
+        if not photometric_modes(binary, shared, photos, modes, tmpdir, pool, floors, check):
             failed = True
     if any(m in modes for m in ("stations", "wrong-stations", "ring-stations")):
         if not stations_modes(binary, shared, photos, modes, tmpdir, pool, floors, check):

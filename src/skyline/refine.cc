@@ -126,6 +126,7 @@ ColumnFit RefineColumn(RefineStrips& strips, int x, int h, int centre, int windo
     f.spread = best_step > 0 ? f.contrast / best_step : 0;
     f.ground_l = ground[0];
     f.sky_chroma = std::sqrt(sky[1] * sky[1] + sky[2] * sky[2]);
+    f.sky_l = sky[0];
     f.ground_green = -ground[1];
     if (dd < 1e-6f) return;
     const double y = ColourCrossing(src.l.data(), src.a.data(), src.b.data(), first, sky, ground, best - 2, best + 2);

@@ -25,6 +25,7 @@ struct ColumnFit {
   double ground_green = 0;  // -a* just below the boundary (positive = green)
   double spread = 0;        // contrast / the largest one-row step: about 1-2 rows for an edge, more for a fade
   double sky_chroma = 0;    // chroma (sqrt(a*^2 + b*^2)) just above the boundary
+  double sky_l = 0;         // lightness just above the boundary
 };
 
 // Strips of the full-size image around the boundary, `count` rows from row

@@ -2,7 +2,6 @@
 #include "skyline/skyline.h"
 
 #include <algorithm>
-#include <array>
 #include <cmath>
 #include <limits>
 #include <opencv2/imgproc.hpp>
@@ -42,6 +41,7 @@ constexpr double kFaintMaxJumpPx = 3.0;  // hysteresis: a faint column's largest
 constexpr float kSkyModelVeto = 3.0f;         // sky-model deviation (robust sigmas) from which a pixel is not sky ...
 constexpr float kSkyModelClean = 2.0f;        // sky-model deviation (robust sigmas) below which a pixel is clean sky
 constexpr float kSubtleDeltaE = 12.0f;        // ... up to this colour distance (beyond: the histograms decide)
+constexpr double kFogReferenceLightness = 100.0;  // L* + 16 of a sky (L* 84) at which fog_contrast applies as it is
 constexpr double kFogSpreadRows = 2.4;  // median contrast / largest one-row step above which a faint boundary is a fade
 constexpr double kMonochromeSoftFactor = 1.5;  // ... times this in a monochrome image (no sky chroma to tell fog by)
 constexpr float kMonochromeChroma = 2.0f;  // chroma (delta E) that 99% of a monochrome image's pixels stay below
@@ -960,10 +960,11 @@ Skyline ExtractSceneSkyline(const cv::Mat& image, const SkylineOptions& options)
   // clearly; when even the clearest tenth of the boundary is faint and the
   // boundary is soft, it is where near terrain fades into fog or whiteout,
   // not the horizon (a faint but sharp far ridge in haze stays).
-  std::vector<double> contrasts, spreads, chromas;
+  std::vector<double> contrasts, spreads, chromas, sky_ls;
   for (int x = 0; x < image.cols; ++x)
     if (std::isfinite(out.y[x]))
-      contrasts.push_back(fits[x].contrast), spreads.push_back(fits[x].spread), chromas.push_back(fits[x].sky_chroma);
+      contrasts.push_back(fits[x].contrast), spreads.push_back(fits[x].spread), chromas.push_back(fits[x].sky_chroma),
+          sky_ls.push_back(fits[x].sky_l);
   if (!contrasts.empty() && Quantile(chromas, 0.5) < options.fog_max_chroma) {
     const double clearest = Quantile(contrasts, 0.9), median_spread = Quantile(spreads, 0.5);
     // A fade spreads its colour change over more rows than an edge, which
@@ -974,7 +975,15 @@ Skyline ExtractSceneSkyline(const cv::Mat& image, const SkylineOptions& options)
     // this test under the colour threshold; a grey 60-row fade spreads 5.3.
     const double soft = kFogSpreadRows * std::max(1.0, image.cols / 1024.0) *
                         (Monochrome(work_t, ws.sample) ? kMonochromeSoftFactor : 1.0);
-    if (clearest < options.fog_contrast && median_spread > soft) {
+    // The contrast an eye reads is relative to the light (an exposure 1.7
+    // stops darker shrinks every delta E by a third): under a sky darker
+    // than L* 84 the threshold shrinks with (L* + 16). Measured: a copy of
+    // AK01b_20090827 darkened 1.7 stops (sky L* 30, clearest tenth 17.1)
+    // or under a grey veil (L* 64, 17.9) was nulled whole; the rendered
+    // fog scene's white sky (L* 92, 15.8) stays fog.
+    const double sky_l = Quantile(sky_ls, 0.5);
+    const double fog_contrast = options.fog_contrast * std::min(1.0, (sky_l + 16.0) / kFogReferenceLightness);
+    if (clearest < fog_contrast && median_spread > soft) {
       std::fill(out.y.begin(), out.y.end(), NAN);
       std::fill(out.confidence.begin(), out.confidence.end(), 0.0);
       return out;

@@ -35,9 +35,11 @@ struct SkylineOptions {
   double faint_contrast_share = 0.6;
   // Fog: all null when the sky above the boundary is white-grey (chroma
   // below fog_max_chroma), the clearest 10% of the boundary differ by less
-  // than fog_contrast (delta E) and the boundary is soft: terrain fading
-  // into fog, not a horizon. A faint ridge under a blue sky is haze, kept.
-  // A monochrome image (no chroma to read) needs a clearly softer boundary.
+  // than fog_contrast (delta E; under a sky darker than L* 84, that times
+  // (L* + 16) / 100: contrast relative to the sky's lightness, as an eye
+  // reads it) and the boundary is soft: terrain fading into fog, not a
+  // horizon. A faint ridge under a blue sky is haze, kept. A monochrome
+  // image (no chroma to read) needs a clearly softer boundary.
   double fog_contrast = 18.0;
   double fog_max_chroma = 8.0;
   void Check() const;                   // Throws InvalidArgument naming the field.

@@ -275,6 +275,36 @@ TEST(ExtractSkyline, TerrainFadingIntoFogGivesAllNull) {
   EXPECT_THROW(o.Check(), InvalidArgument);
 }
 
+// A ridge under a dusk (or underexposed) grey sky: every delta E shrinks
+// with the light, so the clearest tenth of the boundary differs by less
+// than fog_contrast, though relative to the sky's lightness the edge is as
+// clear as by day. Not fog (a copy of a real photo 1.7 stops darker was
+// nulled whole); the same edge faded over many rows stays fog.
+TEST(ExtractSkyline, RidgeUnderADarkSkyIsNotFog) {
+  const int w = 640, h = 400;
+  cv::RNG rng(11);
+  std::vector<double> ridge(w);
+  for (int x = 0; x < w; ++x) ridge[x] = 170.0 + 35.0 * std::sin(x / 80.0) + 8.0 * std::sin(x / 19.0);
+  const cv::Vec3d sky(72, 66, 62), ground(40, 41, 38);  // BGR: sky L* about 28, ground about 16
+  auto scene = [&](double rows) {
+    cv::Mat img(h, w, CV_8UC3);
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x) {
+        const double t = std::clamp((y + 0.5 - ridge[x]) / rows + 0.5, 0.0, 1.0);  // 0 sky .. 1 ridge
+        const cv::Vec3d c = (1 - t) * sky + t * ground;
+        const double n = rng.gaussian(0.8);
+        img.at<cv::Vec3b>(y, x) = cv::Vec3b(cv::saturate_cast<uint8_t>(c[0] + n), cv::saturate_cast<uint8_t>(c[1] + n),
+                                            cv::saturate_cast<uint8_t>(c[2] + n));
+      }
+    return img;
+  };
+  const Skyline s = ExtractSkyline(scene(3.5), SkylineOptions{});
+  int good = 0;
+  for (int x = 0; x < w; ++x) good += std::isfinite(s.y[x]) && std::abs(s.y[x] - ridge[x]) <= 1.5;
+  EXPECT_GE(good, w * 80 / 100);
+  EXPECT_EQ(ExtractSkyline(scene(60.0), SkylineOptions{}).VisibleCount(), 0) << "a fade under the same sky is fog";
+}
+
 // A grey camera's hazy ridge: a faint (about 7 delta E) edge softened over 3
 // rows, with pixel noise. Without chroma it is not taken for fog (as a grey
 // copy of a hazy real photo was: every column nulled), while the 60-row
