@@ -2,6 +2,7 @@
 #include "skyline/skyline.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <opencv2/imgproc.hpp>
@@ -41,6 +42,8 @@ constexpr double kFaintMaxJumpPx = 3.0;  // hysteresis: a faint column's largest
 constexpr float kSkyModelVeto = 3.0f;         // sky-model deviation (robust sigmas) from which a pixel is not sky ...
 constexpr float kSkyModelClean = 2.0f;        // sky-model deviation (robust sigmas) below which a pixel is clean sky
 constexpr float kSubtleDeltaE = 12.0f;        // ... up to this colour distance (beyond: the histograms decide)
+constexpr double kExposureTarget = 0.42;  // linear light of the bright end (99.5th percentile of luma) ...
+constexpr double kMaxExposureGain = 8.0;  // ... a photo under half of it is brightened to, by at most this (3 stops)
 constexpr double kFogReferenceLightness = 100.0;  // L* + 16 of a sky (L* 84) at which fog_contrast applies as it is
 constexpr double kFogSpreadRows = 2.4;  // median contrast / largest one-row step above which a faint boundary is a fade
 constexpr double kMonochromeSoftFactor = 1.5;  // ... times this in a monochrome image (no sky chroma to tell fog by)
@@ -670,6 +673,37 @@ float DeepBlueB(const LabPlanes& lab, std::vector<float>& bs) {
   return kDeepBlueB + std::min(0.0f, bs[bs.size() / 2] - kNormalCastB);
 }
 
+// A photo more than a stop underexposed, brightened: when the bright end
+// of its luma (the 99.5th percentile, read from every 4th pixel across and
+// down) lies below half kExposureTarget in linear light, the image is
+// scaled so that it reaches kExposureTarget (at most kMaxExposureGain
+// times). The extraction's colour steps and thresholds are in delta E, and
+// a photo 1.7 stops under (dusk, a webcam's exposure set by the snow) has
+// every step a third smaller. In the 2.2-gamma model the gain is a scale of
+// the 8-bit values by gain^(1/2.2) (`scale`, 1 when left alone), clipped. A
+// photo nearer the target is left as it is: brightening those (the real
+// photos' bright ends lie at 0.27-0.97) traded registrations on their
+// changed copies (cool and soft ones lost 4, noisy and vignetted ones
+// gained 2) and saturated a hazy blue mountain into "deep blue" sky.
+cv::Mat Exposed(const cv::Mat& bgr, double& scale) {
+  constexpr int kStride = 4;
+  std::array<int, 256> hist{};
+  int n = 0;
+  for (int r = 0; r < bgr.rows; r += kStride) {
+    const cv::Vec3b* p = bgr.ptr<cv::Vec3b>(r);
+    for (int c = 0; c < bgr.cols; c += kStride, ++n) ++hist[(29 * p[c][0] + 150 * p[c][1] + 77 * p[c][2] + 128) >> 8];
+  }
+  int k = 255, above = hist[255];  // k: the 99.5th percentile, above: the samples at k or brighter
+  while (k > 0 && above <= n / 200) above += hist[--k];
+  const double linear = std::pow((k + 0.5) / 255.0, 2.2);
+  scale = 1.0;
+  if (linear >= 0.5 * kExposureTarget) return bgr;
+  scale = std::pow(std::min(kMaxExposureGain, kExposureTarget / linear), 1.0 / 2.2);
+  cv::Mat out;
+  bgr.convertTo(out, -1, scale);
+  return out;
+}
+
 // The image as 8-bit BGR (grey and BGRA converted, BGR shared).
 cv::Mat ToBgr(const cv::Mat& image) {
   cv::Mat bgr;
@@ -777,8 +811,9 @@ int Skyline::VisibleCount() const {
 
 namespace {
 
-// ExtractSkyline on an image with no overlay bands (checked by the caller).
-Skyline ExtractSceneSkyline(const cv::Mat& image, const SkylineOptions& options) {
+// ExtractSkyline on an image with no overlay bands (checked by the caller),
+// its 8-bit values scaled by `exposure` (Exposed) from the photo's.
+Skyline ExtractSceneSkyline(const cv::Mat& image, const SkylineOptions& options, double exposure) {
   Skyline out;
   out.width = image.cols;
   out.height = image.rows;
@@ -788,7 +823,7 @@ Skyline ExtractSceneSkyline(const cv::Mat& image, const SkylineOptions& options)
 
   const cv::Mat bgr = ToBgr(image);
   if (const int k = ExtractionReduction(bgr.cols, bgr.rows); k >= 2) {
-    Skyline up = MappedUp(ExtractSceneSkyline(BlockMeans(bgr, k), options), k, image.cols, image.rows);
+    Skyline up = MappedUp(ExtractSceneSkyline(BlockMeans(bgr, k), options, exposure), k, image.cols, image.rows);
     // At full size to within a fraction of a pixel: the edge each column
     // was read at, and its raise to a fainter ridge above where that raise
     // is within a reduced row (a row the edge half fills departs from the
@@ -945,7 +980,11 @@ Skyline ExtractSceneSkyline(const cv::Mat& image, const SkylineOptions& options)
   const int grow = std::max(3, image.cols / 128);  // the occluder's edges and the DP's way round it
   // The step noise of a smooth sky, a k-row mean difference: times
   // sqrt(k / 2) for the refinement's 3-row colours, roughly the pixel noise.
-  const double min_contrast = std::max(options.min_contrast, options.min_contrast_sigmas * 2.0 * sky_noise);
+  // The floor is the photo's own (its 8-bit steps and JPEG blocks), so a
+  // brightened photo's (Exposed) grows with it; the noise term already has.
+  const double light_gain = std::pow(exposure, 2.2 / 3.0);  // delta E grows with the light as (exposure^2.2)^(1/3)
+  const double min_contrast =
+      std::max(options.min_contrast * light_gain, options.min_contrast_sigmas * 2.0 * sky_noise);
   std::vector<uint8_t> grown(occluded);
   for (int x = 0; x < image.cols; ++x)
     if (occluded[x])
@@ -965,7 +1004,10 @@ Skyline ExtractSceneSkyline(const cv::Mat& image, const SkylineOptions& options)
     if (std::isfinite(out.y[x]))
       contrasts.push_back(fits[x].contrast), spreads.push_back(fits[x].spread), chromas.push_back(fits[x].sky_chroma),
           sky_ls.push_back(fits[x].sky_l);
-  if (!contrasts.empty() && Quantile(chromas, 0.5) < options.fog_max_chroma) {
+  // The sky's chroma as taken: brightening (Exposed, the 8-bit values times
+  // `exposure`) raised chroma with the light, as (exposure^2.2)^(1/3), and a
+  // grey dusk sky brightened 3 stops read as blue, so its fog went unjudged.
+  if (!contrasts.empty() && Quantile(chromas, 0.5) / light_gain < options.fog_max_chroma) {
     const double clearest = Quantile(contrasts, 0.9), median_spread = Quantile(spreads, 0.5);
     // A fade spreads its colour change over more rows than an edge, which
     // the renderer or the lens smooths over ~2 rows per 1000 columns. A
@@ -1029,20 +1071,21 @@ Skyline ExtractSkyline(const cv::Mat& image, const SkylineOptions& options) {
   if (image.empty() || image.depth() != CV_8U ||
       (image.channels() != 1 && image.channels() != 3 && image.channels() != 4))
     throw InvalidArgument("skyline: the image must be a non-empty 8-bit grey, BGR or BGRA image");
-  if (image.rows < 8 || image.cols < 8) return ExtractSceneSkyline(image, options);
-  const cv::Mat bgr = ToBgr(image);
+  if (image.rows < 8 || image.cols < 8) return ExtractSceneSkyline(image, options, 1.0);
+  double exposure = 1.0;
+  const cv::Mat bgr = Exposed(ToBgr(image), exposure);
   // A timestamp strip along the top or bottom edge is not scene: the
   // skyline is read between them, in the photo's rows.
   if (const int top = OverlayBandRows(bgr, true), bottom = OverlayBandRows(bgr, false);
       (top > 0 || bottom > 0) && bgr.rows - top - bottom >= 8) {
-    Skyline s = ExtractSceneSkyline(bgr.rowRange(top, bgr.rows - bottom).clone(), options);
+    Skyline s = ExtractSceneSkyline(bgr.rowRange(top, bgr.rows - bottom).clone(), options, exposure);
     s.height = image.rows;
     s.overlay_top_rows = top, s.overlay_bottom_rows = bottom;
     for (double& v : s.y) v += top;
     for (double& v : s.y_alt) v += top;
     return s;
   }
-  return ExtractSceneSkyline(bgr, options);
+  return ExtractSceneSkyline(bgr, options, exposure);
 }
 
 cv::Mat DrawSkylineDebug(const cv::Mat& image, const Skyline& skyline) {
