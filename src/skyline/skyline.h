@@ -72,7 +72,11 @@ struct Skyline {
 };
 
 // Extracts the skyline of an 8-bit image (1, 3 or 4 channels, OpenCV BGR
-// order). A uniform, all-sky or all-ground image gives all-null output.
+// order). A uniform, all-sky or all-ground image gives all-null output. An
+// image more than a stop underexposed (its bright end, the 99.5th
+// percentile of luma, under 0.21 in linear light) is brightened to 0.42
+// first, at most 3 stops; min_contrast and fog_max_chroma then apply to it
+// as it was taken.
 // Throws InvalidArgument for an empty image or bad options. Thread-safe;
 // each thread keeps its scratch images (~10 MB at the default work width)
 // for its next call, so a video's frames do not fault in fresh memory.
