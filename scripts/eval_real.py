@@ -480,6 +480,17 @@ def pose_table(title, rows, tol):
     return len(good), len(false), med("daz"), med("dp")
 
 
+def traced_columns(t):
+    """The hand-traced columns of a truth file: (column, row) where traced."""
+    return [(x, y) for x, y in enumerate(t["skyline_row"]) if y is not None]
+
+
+def signed_errors(traced, s, top=0):
+    """Skyline JSON `s` (read `top` rows below the photo's top) minus the
+    trace, over the traced columns it gives a value in (positive: lower)."""
+    return [s["y"][x] + top - y for x, y in traced if s["y"][x] is not None]
+
+
 def skyline_table(binary, photos, thin_sky_px=None, shared=None, grey=False, jpeg_quality=None):
     """Per photo and in all: the traced columns given a value and within 2 px.
     With thin_sky_px, each photo is first cropped from the top to leave that
@@ -510,7 +521,7 @@ def skyline_table(binary, photos, thin_sky_px=None, shared=None, grey=False, jpe
     print(f"{'photo':<24}{'traced':>7}{'given':>7}{'<=2px':>7}{'<=5px':>7}{'median':>8}{'p90':>7}{'below':>7}{'above':>7}")
     tot_traced = tot_given = tot_2 = tot_below = tot_above = 0
     for name, t, photo_dir in photos:
-        traced = [(x, y) for x, y in enumerate(t["skyline_row"]) if y is not None]
+        traced = traced_columns(t)
         if not traced:
             print(f"{name:<24}{'(no trace)':>7}")
             continue
@@ -537,7 +548,7 @@ def skyline_table(binary, photos, thin_sky_px=None, shared=None, grey=False, jpe
             else:
                 subprocess.run([binary, "skyline", image, "--json", os.path.join(tmp, "s.json")], check=True)
             s = json.load(open(os.path.join(tmp, "s.json")))
-        signed = [s["y"][x] + top - y for x, y in traced if s["y"][x] is not None]
+        signed = signed_errors(traced, s, top)
         d = [abs(v) for v in signed]
         below, above = sum(v > 2 for v in signed), sum(v < -2 for v in signed)
         tot_below += below
@@ -625,19 +636,17 @@ def photometric_modes(binary, shared, photos, modes, tmpdir, pool, floors, check
             good, false, traced, given, within, missed = 0, [], 0, 0, 0, []
             for (name, t, _), r, s in pool.map(run, photos):
                 e = errors(r, t)
-                if e and max(abs(e["daz"]), abs(e["dp"])) <= 0.5:
+                off = max(abs(e["daz"]), abs(e["dp"])) if e else None
+                if off is not None and off <= 0.5:
                     good += 1
-                elif e and max(abs(e["daz"]), abs(e["dp"])) > 1.0:
+                elif off is not None and off > 1.0:
                     false.append(name)
                 else:
                     missed.append(name)
-                for x, y in enumerate(t["skyline_row"]):
-                    if y is None:
-                        continue
-                    traced += 1
-                    if s["y"][x] is not None:
-                        given += 1
-                        within += abs(s["y"][x] - y) <= 2
+                columns = traced_columns(t)
+                signed = signed_errors(columns, s)
+                traced, given, within = traced + len(columns), given + len(signed), within + sum(
+                    abs(v) <= 2 for v in signed)
             w = within / traced if traced else float("nan")
             print(f"{key:<10}{good:>8}/{len(photos):<2}{len(false):>6}{100 * w:>8.1f}%{100 * given / max(traced, 1):>6.1f}%"
                   f"  {' '.join(missed)}{' FALSE: ' + ' '.join(false) if false else ''}")
