@@ -456,6 +456,24 @@ std::vector<uint8_t> FindOccluders(const std::vector<ColumnFit>& fits, int image
   return occluded;
 }
 
+std::vector<uint8_t> GridRunColumns(const std::vector<double>& y, int grid, double slack, int min_run) {
+  const int w = static_cast<int>(y.size());
+  std::vector<uint8_t> out(w, 0);
+  auto row_of = [&](int x) -> long {  // the grid row y[x] lies on, or -1
+    if (!std::isfinite(y[x])) return -1;
+    const long k = std::lround(y[x] / grid);
+    return std::abs(y[x] - static_cast<double>(k) * grid) <= slack ? k : -1;
+  };
+  for (int x = 0; x < w;) {
+    const long k = row_of(x);
+    int end = x + 1;
+    while (k >= 0 && end < w && row_of(end) == k) ++end;
+    if (k >= 0 && end - x >= min_run) std::fill(out.begin() + x, out.begin() + end, 1);
+    x = end;
+  }
+  return out;
+}
+
 double Quantile(std::vector<double>& v, double q) {
   const auto it = v.begin() + std::min(v.size() - 1, static_cast<size_t>(q * v.size()));
   std::nth_element(v.begin(), it, v.end());

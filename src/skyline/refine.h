@@ -225,4 +225,9 @@ std::vector<uint8_t> FindOccluders(const std::vector<ColumnFit>& fits, int image
 // The q-quantile (0..1) of a non-empty sample (reorders it).
 double Quantile(std::vector<double>& v, double q);
 
+// The columns of runs, at least `min_run` long, in which y lies within
+// `slack` rows of one and the same multiple of `grid` (a JPEG's block
+// rows): 1 in those columns, 0 elsewhere (NaN breaks a run).
+std::vector<uint8_t> GridRunColumns(const std::vector<double>& y, int grid, double slack, int min_run);
+
 }  // namespace horizonreg::skyline_detail

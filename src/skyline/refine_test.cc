@@ -324,5 +324,26 @@ TEST(ContinueFaintColumns, FaintColumnsContinuingAClearRunAreKept) {
   EXPECT_DOUBLE_EQ(out.confidence[10], 0.2) << "a clear column keeps its confidence";
 }
 
+// A JPEG's block rows: a run along one grid row long enough is marked; the
+// columns off the grid (a level ridge between block rows), a shorter run
+// and one broken by a null are not; a boundary stepping from one grid row
+// to the next makes two runs, each judged on its own.
+TEST(GridRunColumns, MarksOnlyLongRunsAlongOneBlockRow) {
+  std::vector<double> y(200, 100.3);                         // off the grid (8 k +- 0.75)
+  for (int x = 10; x < 60; ++x) y[x] = 144.0 + 0.5 * ((x % 3) - 1);  // 50 columns on row 144
+  for (int x = 70; x < 95; ++x) y[x] = 128.1;                // 25 columns on row 128
+  for (int x = 100; x < 160; ++x) y[x] = x < 120 ? 64.2 : 72.2;  // 20 + 40 on two rows
+  for (int x = 165; x < 200; ++x) y[x] = 40.0;               // 35 columns ...
+  y[180] = NAN;                                              // ... broken by a null
+  const std::vector<uint8_t> runs = GridRunColumns(y, 8, 0.75, 30);
+  for (int x = 0; x < 200; ++x) {
+    const bool expected = (x >= 10 && x < 60) || (x >= 120 && x < 160);
+    EXPECT_EQ(runs[x] != 0, expected) << x;
+  }
+  // The same with a shorter least run takes the 25 columns too.
+  EXPECT_EQ(GridRunColumns(y, 8, 0.75, 20)[80], 1);
+  EXPECT_TRUE(GridRunColumns({}, 8, 0.75, 10).empty());
+}
+
 }  // namespace
 }  // namespace horizonreg::skyline_detail

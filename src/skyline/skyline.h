@@ -76,7 +76,10 @@ struct Skyline {
 // image more than a stop underexposed (its bright end, the 99.5th
 // percentile of luma, under 0.21 in linear light) is brightened to 0.42
 // first, at most 3 stops; min_contrast and fog_max_chroma then apply to it
-// as it was taken.
+// as it was taken. Where the skyline runs along one of a JPEG's 8-row block
+// rows for 80 columns per 1024 or more (the codec's steps in a smooth sky,
+// not terrain), the runs along block rows are read again under a looser
+// sky model.
 // Throws InvalidArgument for an empty image or bad options. Thread-safe;
 // each thread keeps its scratch images (~10 MB at the default work width)
 // for its next call, so a video's frames do not fault in fresh memory.
