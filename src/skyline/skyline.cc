@@ -819,7 +819,9 @@ namespace {
 
 // ExtractSkyline on an image with no overlay bands (checked by the caller),
 // its 8-bit values scaled by `exposure` (Exposed) from the photo's. The sky
-// model's robust scale is at least `sky_floor` (delta E).
+// model whose departures veto sky (the first fit) has a robust scale of at
+// least `sky_floor` (delta E); the refit that RaiseToSkyModelDeparture reads
+// keeps kSkyModelFloor.
 Skyline ExtractSceneSkyline(const cv::Mat& image, const SkylineOptions& options, double exposure,
                             float sky_floor = kSkyModelFloor) {
   Skyline out;
