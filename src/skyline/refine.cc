@@ -2,6 +2,7 @@
 #include "skyline/refine.h"
 
 #include <algorithm>
+#include <utility>
 
 namespace horizonreg::skyline_detail {
 namespace {
@@ -471,6 +472,31 @@ std::vector<uint8_t> GridRunColumns(const std::vector<double>& y, int grid, doub
     if (k >= 0 && end - x >= min_run) std::fill(out.begin() + x, out.begin() + end, 1);
     x = end;
   }
+  return out;
+}
+
+std::vector<uint8_t> IsolatedRunColumns(const std::vector<double>& y, int max_run, int min_gap) {
+  const int w = static_cast<int>(y.size());
+  std::vector<uint8_t> out(w, 0);
+  // Stretches: finite runs joined across gaps shorter than min_gap.
+  std::vector<std::pair<int, int>> stretches;  // [first, end)
+  for (int x = 0; x < w;) {
+    if (!std::isfinite(y[x])) {
+      ++x;
+      continue;
+    }
+    int end = x;
+    while (end < w && std::isfinite(y[end])) ++end;
+    if (!stretches.empty() && x - stretches.back().second < min_gap)
+      stretches.back().second = end;
+    else
+      stretches.emplace_back(x, end);
+    x = end;
+  }
+  // Nulls out to an edge count as a gap; a stretch at an edge is never isolated.
+  for (const auto& [first, end] : stretches)
+    if (end - first <= max_run && first > 0 && end < w)
+      for (int x = first; x < end; ++x) out[x] = std::isfinite(y[x]) ? 1 : 0;
   return out;
 }
 

@@ -230,4 +230,11 @@ double Quantile(std::vector<double>& v, double q);
 // rows): 1 in those columns, 0 elsewhere (NaN breaks a run).
 std::vector<uint8_t> GridRunColumns(const std::vector<double>& y, int grid, double slack, int min_run);
 
+// The columns of isolated stretches: finite runs joined across gaps of
+// fewer than `min_gap` nulls, spanning at most `max_run` columns (so with
+// at least `min_gap` nulls on each side; a stretch touching the image's
+// left or right edge is never isolated): 1 in their finite columns, 0
+// elsewhere.
+std::vector<uint8_t> IsolatedRunColumns(const std::vector<double>& y, int max_run, int min_gap);
+
 }  // namespace horizonreg::skyline_detail

@@ -345,5 +345,28 @@ TEST(GridRunColumns, MarksOnlyLongRunsAlongOneBlockRow) {
   EXPECT_TRUE(GridRunColumns({}, 8, 0.75, 10).empty());
 }
 
+// Short stretches between long gaps are marked; a long one, a short run
+// joined to a long one across a short gap, and one at the image's edge are
+// not; runs across short gaps count as one stretch.
+TEST(IsolatedRunColumns, MarksShortStretchesBetweenLongGaps) {
+  std::vector<double> y(200, NAN);
+  for (int x = 0; x < 5; ++x) y[x] = 10.0;      // at the left edge
+  for (int x = 20; x < 26; ++x) y[x] = 50.0;    // 6 columns, gaps 15 and 14: isolated
+  for (int x = 40; x < 80; ++x) y[x] = 60.0;    // long
+  for (int x = 84; x < 88; ++x) y[x] = 70.0;    // gap of 4 on the left: a ridge's broken part
+  for (int x = 120; x < 130; ++x) y[x] = 20.0;  // 10 columns, gaps 32 and 50: isolated if 10 may be
+  y[150] = y[153] = y[154] = 30.0;              // one stretch of 5 across a gap of 2, then nulls to the edge
+  const std::vector<uint8_t> iso = IsolatedRunColumns(y, 8, 10);
+  for (int x = 0; x < 200; ++x) {
+    const bool expected = (x >= 20 && x < 26) || x == 150 || x == 153 || x == 154;
+    EXPECT_EQ(iso[x] != 0, expected) << x;
+  }
+  EXPECT_EQ(IsolatedRunColumns(y, 10, 10)[125], 1);
+  std::vector<double> right(50, NAN);
+  for (int x = 45; x < 50; ++x) right[x] = 5.0;  // at the right edge
+  EXPECT_EQ(IsolatedRunColumns(right, 8, 10)[47], 0);
+  EXPECT_TRUE(IsolatedRunColumns({}, 8, 10).empty());
+}
+
 }  // namespace
 }  // namespace horizonreg::skyline_detail

@@ -217,6 +217,34 @@ TEST(ExtractSkyline, ThinSkyStripOverTexturedSnowKeepsItsColumns) {
   EXPECT_GE(good, 0.85 * w);
 }
 
+// Rock reaching the top of the frame over a third of the width, with small
+// snow patches near its top (a steep near mountain, or one cut by a
+// timestamp strip): the patches' top rows look like the pale sky, and each
+// patch alone gave a few columns of "skyline" there. Those columns are
+// null; the skyline either side is read as before.
+TEST(ExtractSkyline, SnowPatchesInRockReachingTheTopAreNoSkyline) {
+  std::vector<double> truth;
+  cv::Mat img = SyntheticScene(640, 400, truth);
+  for (int x = 0; x < 640; ++x) {
+    if (x >= 200 && x < 420) truth[x] = 0.0;  // rock up to the top edge
+    for (int y = 0; y < 400; ++y)
+      img.at<cv::Vec3b>(y, x) = y + 0.5 < truth[x] ? cv::Vec3b(205, 195, 190 - 10 * y / 400)
+                                                   : cv::Vec3b(112, 98, 92);
+  }
+  for (int p = 0; p < 5; ++p)  // 4 x 5 px patches of snow, 40 columns apart
+    cv::rectangle(img, {220 + 40 * p, 6 + 3 * (p % 2)}, {223 + 40 * p, 10 + 3 * (p % 2)}, cv::Scalar(228, 226, 224),
+                  cv::FILLED);
+  AddNoise(img, 1.0);
+  const Skyline s = ExtractSkyline(img, SkylineOptions{});
+  int given = 0;
+  for (int x = 215; x < 405; ++x) given += std::isfinite(s.y[x]) ? 1 : 0;
+  EXPECT_EQ(given, 0);
+  int good = 0;
+  for (int x = 0; x < 640; ++x)
+    if ((x < 190 || x >= 430) && std::isfinite(s.y[x]) && std::abs(s.y[x] - std::ceil(truth[x] - 0.5)) <= 1.0) ++good;
+  EXPECT_GE(good, 0.95 * 400);
+}
+
 TEST(ExtractSkyline, UniformAllSkyAndAllGroundImagesGiveAllNull) {
   const cv::Mat grey(300, 400, CV_8UC3, cv::Scalar(128, 128, 128));
   const cv::Mat sky(300, 400, CV_8UC3, cv::Scalar(235, 200, 160));
