@@ -563,7 +563,7 @@ void RaiseDips(const cv::Mat& bgr, const std::vector<uint8_t>& skip, std::vector
   // The columns raised before (finite alt), not read as neighbours.
   std::vector<uint8_t> raised(w);
   for (int x = 0; x < w; ++x) raised[x] = std::isfinite(alt[x]) ? 1 : 0;
-  const int reach = std::max(3, static_cast<int>(std::lround(kDipReach * w / 1024.0)));
+  const int reach = ColumnsPer1024(kDipReach, w, 3);
   const double rows = kDipRows * std::max(1.0, w / 1024.0);
   std::vector<uint8_t> strip;
   std::vector<float> l, a, b;

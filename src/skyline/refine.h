@@ -5,6 +5,7 @@
 // or pole stands in front of the horizon.
 #pragma once
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -224,6 +225,12 @@ std::vector<uint8_t> FindOccluders(const std::vector<ColumnFit>& fits, int image
 
 // The q-quantile (0..1) of a non-empty sample (reorders it).
 double Quantile(std::vector<double>& v, double q);
+
+// A column count given per 1024 columns, for an image `cols` wide: rounded,
+// and at least `at_least` (thresholds tuned at the extraction width).
+inline int ColumnsPer1024(double per_1024, int cols, int at_least) {
+  return std::max(at_least, static_cast<int>(std::lround(per_1024 * cols / 1024.0)));
+}
 
 // The columns of runs, at least `min_run` long, in which y lies within
 // `slack` rows of one and the same multiple of `grid` (a JPEG's block

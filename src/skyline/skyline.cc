@@ -1124,14 +1124,14 @@ Skyline ExtractSkyline(const cv::Mat& image, const SkylineOptions& options) {
   // quality 50: 9 -> 10). Not the whole photo: that floor is too loose
   // for the faint ridges of photos as taken (CG05_20050811_190000 loses
   // them all, the photos 80.6% -> 74.0%).
-  const int min_run = std::max(40, static_cast<int>(std::lround(kGridRunColumns * image.cols / 1024.0)));
+  const int min_run = skyline_detail::ColumnsPer1024(kGridRunColumns, image.cols, 40);
   if (const std::vector<uint8_t> long_runs = skyline_detail::GridRunColumns(s.y, kJpegBlockRows, kGridRowSlack, min_run);
       std::find(long_runs.begin(), long_runs.end(), 1) != long_runs.end()) {
     // Once one long run shows it, shorter ones on other grid rows are the
     // same steps (the boundary stepping from one block row to the next).
     const std::vector<uint8_t> runs = skyline_detail::GridRunColumns(
         s.y, kJpegBlockRows, kGridRowSlack,
-        std::max(12, static_cast<int>(std::lround(kGridShortRunColumns * image.cols / 1024.0))));
+        skyline_detail::ColumnsPer1024(kGridShortRunColumns, image.cols, 12));
     const Skyline again = extract(kBlockSkyFloor);
     s.y_alt.resize(s.width, NAN);
     for (int x = 0; x < s.width; ++x)
@@ -1147,10 +1147,9 @@ Skyline ExtractSkyline(const cv::Mat& image, const SkylineOptions& options) {
   // under a strip they gave AK10_20090803 a rival 54 deg off (its skyline
   // without them registers).
   {
-    const double per = image.cols / 1024.0;
     const std::vector<uint8_t> iso = skyline_detail::IsolatedRunColumns(
-        s.y, std::max(8, static_cast<int>(std::lround(kIsolatedRunColumns * per))),
-        std::max(5, static_cast<int>(std::lround(kIsolatedGapColumns * per))));
+        s.y, skyline_detail::ColumnsPer1024(kIsolatedRunColumns, image.cols, 8),
+        skyline_detail::ColumnsPer1024(kIsolatedGapColumns, image.cols, 5));
     for (int x = 0; x < s.width; ++x)
       if (iso[x]) {
         s.y[x] = NAN, s.confidence[x] = 0.0;
