@@ -224,6 +224,32 @@ TEST(Register, RecoversASyntheticPoseWithoutPriors) {
   }
 }
 
+// A narrow window of opening angles (a known --hfov) is a constraint on the
+// answer, not only on the search: a skyline that fits only 1.8% below the
+// window (inside the 5% the candidates may stray) is no registration; in a
+// wide window any opening angle inside it is.
+TEST(Register, AKnownOpeningAngleIsKept) {
+  const HorizonProfile p = SyntheticHorizon(0.25);
+  const CameraPose pose{300.2, -2.0, 3.0};
+  const auto k = CameraIntrinsics::FromHfov(1024, 683, 60.0);
+  RegistrationOptions known;
+  known.min_hfov_deg = 60.0 * 0.97, known.max_hfov_deg = 60.0 * 1.03;
+  ASSERT_TRUE(known.NarrowHfovWindow());
+  const Registration kept = Register(SkylineOf(p, pose, k), p, known);
+  EXPECT_TRUE(kept.registered) << kept.message;
+  RegistrationOptions off = known;
+  off.min_hfov_deg = 63.0 * 0.97, off.max_hfov_deg = 63.0 * 1.03;
+  const Registration refused = Register(SkylineOf(p, pose, k), p, off);
+  EXPECT_FALSE(refused.registered);
+  EXPECT_NE(refused.message.find("outside the one given"), std::string::npos) << refused.message;
+  EXPECT_NEAR(refused.hfov_deg, 60.0, 0.1);  // the fit itself found the truth
+  EXPECT_FALSE(off.KeepsKnownHfov(60.0));
+  EXPECT_TRUE(off.KeepsKnownHfov(61.0));
+  RegistrationOptions wide;
+  wide.min_hfov_deg = 35.0, wide.max_hfov_deg = 50.0;
+  EXPECT_TRUE(wide.KeepsKnownHfov(34.0));
+}
+
 // A crop of a wide view (the camera's centre 150 px right of the image's):
 // registered as centred, the centre ray is off; RefinePrincipalColumn finds
 // the camera's centre and the centre ray. Without a range it does nothing.

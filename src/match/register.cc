@@ -295,6 +295,9 @@ void FinishRegistration(const Scorer& scorer, const ImageFrame& frame, std::vect
   else if (out.evidence_nats < options.min_evidence_nats)
     why << "too little evidence: " << std::lround(out.evidence_nats) << " nats over "
         << std::lround(stats.independent_inliers) << " independent DEM samples (near terrain or a zoomed-in view)";
+  else if (!frame.known() && !options.KeepsKnownHfov(out.hfov_deg))
+    why << "the skyline fits at an opening angle of " << out.hfov_deg << " deg, outside the one given ("
+        << options.min_hfov_deg << "-" << options.max_hfov_deg << " deg searched)";
   out.message = why.str();
   out.registered = out.message.empty();
   if (out.registered) out.message = "registered";

@@ -28,7 +28,7 @@ double MsSince(std::chrono::steady_clock::time_point t0) {
 // The gate of a pose given as initial, as the refusals name it.
 std::string PoseGateText(const RegistrationOptions& constrained) {
   return std::to_string(std::lround(constrained.prior.gate_sigmas * constrained.prior.compass_sigma_deg)) +
-         " deg, the opening angle 10%";
+         " deg, the opening angle " + std::to_string(std::lround(100.0 * (std::sqrt(constrained.max_hfov_deg / constrained.min_hfov_deg) * 1.01 - 1.0))) + "%";
 }
 
 }  // namespace
@@ -330,7 +330,7 @@ void RefinePhotoPosition(const Site& site, const cv::Mat& image, const PositionO
 
 bool WithinPose(const RegistrationOptions& constrained, const Registration& r) {
   if (!WithinPrior(constrained, r.pose)) return false;
-  return r.focal_px > 0.0 && constrained.AdmitsHfov(r.hfov_deg);
+  return r.focal_px > 0.0 && constrained.AdmitsHfov(r.hfov_deg) && constrained.KeepsKnownHfov(r.hfov_deg);
 }
 
 Registration ConfirmedWithoutPrior(Registration alone, const RegistrationOptions& constrained) {
