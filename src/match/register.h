@@ -137,8 +137,10 @@ struct RegistrationOptions {
   // the registrations stay within 1.2% of it, and from 5 km beside
   // AK01b_20080811 without an altitude a pose 164 deg off registered at
   // +6.8% with its lens bent to k1 = +0.13 (the truth's -0.06).
+  static constexpr double kKnownHfovSlack = 0.01;
   bool KeepsKnownHfov(double hfov_deg) const {
-    return !NarrowHfovWindow() || (hfov_deg >= min_hfov_deg * 0.99 && hfov_deg <= max_hfov_deg * 1.01);
+    return !NarrowHfovWindow() ||
+           (hfov_deg >= min_hfov_deg * (1.0 - kKnownHfovSlack) && hfov_deg <= max_hfov_deg * (1.0 + kKnownHfovSlack));
   }
   // Whether `informative_columns` (Registration::informative_columns) of a
   // skyline `width` columns wide are enough to tell the pose.

@@ -25,10 +25,13 @@ double MsSince(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 }
 
-// The gate of a pose given as initial, as the refusals name it.
+// The gate of a pose given as initial, as the refusals name it (the
+// opening angle: its window's half-width and the slack an answer keeps to).
 std::string PoseGateText(const RegistrationOptions& constrained) {
+  const double hfov_share =
+      std::sqrt(constrained.max_hfov_deg / constrained.min_hfov_deg) * (1.0 + RegistrationOptions::kKnownHfovSlack);
   return std::to_string(std::lround(constrained.prior.gate_sigmas * constrained.prior.compass_sigma_deg)) +
-         " deg, the opening angle " + std::to_string(std::lround(100.0 * (std::sqrt(constrained.max_hfov_deg / constrained.min_hfov_deg) * 1.01 - 1.0))) + "%";
+         " deg, the opening angle " + std::to_string(std::lround(100.0 * (hfov_share - 1.0))) + "%";
 }
 
 }  // namespace
