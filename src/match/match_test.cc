@@ -441,6 +441,32 @@ TEST(Register, ACompassPriorResolvesARepeatingHorizon) {
   EXPECT_NEAR(AngDiffDeg(r.pose.azimuth_deg, 80.0), 0.0, 0.01);
 }
 
+// Rivals an image cue has told apart (RegistrationOptions::ruled_out_rivals,
+// the pipeline's inner ridges) are no alternative: twelve mountains that
+// differ by 2% in height leave the search ambiguous; with the
+// other eleven ruled out, it registers, and ruling out the truth's
+// neighbours only (not all) leaves it ambiguous.
+TEST(Register, RuledOutRivalsAreNoAlternative) {
+  HorizonProfile p = SyntheticHorizon(0.25, false, 12);  // peaks every 30 deg
+  for (int i = 0; i < p.size(); ++i)  // each mountain's height a little different
+    p.elevation_deg[i] = 1.0 + (p.elevation_deg[i] - 1.0) * (1.0 + 0.02 * std::sin(DegToRad(p.AzimuthDeg(i)) + 0.7));
+  const CameraPose pose{80.0, 0.0, 0.0};
+  const auto k = CameraIntrinsics::FromHfov(1024, 683, 40.0);
+  RegistrationOptions o;
+  o.min_hfov_deg = 35.0;
+  o.max_hfov_deg = 45.0;
+  const Skyline s = SkylineOf(p, pose, k);
+  const Registration plain = Register(s, p, o);
+  ASSERT_FALSE(plain.registered) << plain.message;
+  ASSERT_TRUE(plain.rival);
+  for (int j = 1; j < 12; ++j) o.ruled_out_rivals.push_back({WrapAzimuthDeg(80.0 + 30.0 * j), 0.0, 0.0});
+  const Registration r = Register(s, p, o);
+  ASSERT_TRUE(r.registered) << r.message;
+  EXPECT_NEAR(AngDiffDeg(r.pose.azimuth_deg, 80.0), 0.0, 0.01);
+  o.ruled_out_rivals.resize(2);  // 110 and 140 deg: the other nine stay rivals
+  EXPECT_FALSE(Register(s, p, o).registered);
+}
+
 TEST(Register, EmptySkylineGivesNoMatchNotAnError) {
   const HorizonProfile p = SyntheticHorizon(0.25);
   Skyline s;

@@ -627,6 +627,13 @@ Registration Register(const Skyline& skyline, const HorizonProfile& horizon, con
   const Candidate* second_candidate = nullptr;
   const Candidate* closest_rival = nullptr;  // the distinct alternative of least misfit
   std::vector<uint8_t> merged;               // polished onto the best: no alternative
+  auto ruled_out = [&](const Pose4& c) {
+    const CameraPose p = c.ToPose();
+    return std::any_of(options.ruled_out_rivals.begin(), options.ruled_out_rivals.end(), [&](const CameraPose& q) {
+      return std::abs(AngDiffDeg(p.azimuth_deg, q.azimuth_deg)) < RegistrationOptions::kRuledOutDeg &&
+             std::abs(p.pitch_deg - q.pitch_deg) < RegistrationOptions::kRuledOutDeg;
+    });
+  };
   auto same_solution = [&](const Pose4& c, const Pose4& b) {
     return SamePose(c, b, width) || (NearPose(c, b, width) && scorer.Agreement(c, b, quick, tau) >= 0.5);
   };
@@ -641,7 +648,7 @@ Registration Register(const Skyline& skyline, const HorizonProfile& horizon, con
     const Candidate& b = refined[order[0]];
     for (size_t i = 1; i < order.size(); ++i) {
       const Candidate& c = refined[order[i]];
-      if (merged[order[i]] || same_solution(c.pose, b.pose)) continue;
+      if (merged[order[i]] || same_solution(c.pose, b.pose) || ruled_out(c.pose)) continue;
       if (!second_candidate || c.cost < second_candidate->cost) second_candidate = &c;
       if (!closest_rival || c.misfit < closest_rival->misfit) closest_rival = &c;
     }

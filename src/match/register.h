@@ -118,6 +118,13 @@ struct RegistrationOptions {
   // only compared with each other (the position check, locate's places),
   // which then cost what they did, not three times as much.
   bool narrow_window_restarts = true;
+  // Poses an image cue has told apart from the best one (the inner ridges
+  // of pipeline/ridge_check.h): a candidate within kRuledOutDeg of one in
+  // azimuth and pitch is no alternative (neither the ambiguity ratio's nor
+  // the misfit ratio's, nor the evidence's). Empty: every distinct
+  // candidate is one.
+  std::vector<CameraPose> ruled_out_rivals;
+  static constexpr double kRuledOutDeg = 1.0;
   void Check() const;  // Throws InvalidArgument naming the field.
   // Whether the window of opening angles is narrow: max / min < 1.12 (a
   // known --hfov, --initial's +-5%).

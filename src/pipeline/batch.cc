@@ -256,7 +256,8 @@ nlohmann::json ErrorRow(const BatchItem& item, const std::string& message) {
 // Whether a station's position has been vouched for by its photos: at
 // least kVouchPhotos registered and passed the full position check (wide
 // look included where their first ring asked for it), and none was refused
-// by it. A wrong position is refused by the check on most photos (the real
+// by it (a pose the inner ridges chose, refused only under their stricter
+// limit, is doubted itself, not the position). A wrong position is refused by the check on most photos (the real
 // photos from 2-10 km away: every probe that registered before the check);
 // one that fooled it on one photo is refused on another before the station
 // is vouched for.
@@ -269,7 +270,7 @@ struct StationVouch {
   std::vector<std::pair<double, double>> views;  // the passed photos' opening angles and aspect ratios
   void Add(const PhotoRegistration& r) {
     if (!r.position_check) return;
-    if (!r.position_check->consistent) {
+    if (!r.position_check->consistent && !r.position_check->only_ridges_limit) {
       ++refused;
     } else if (r.registration.registered) {
       ++passed;
@@ -392,8 +393,10 @@ size_t RunBatch(const std::vector<BatchItem>& items, const BatchOptions& options
         // angle unknown or from its EXIF (+-10%), none given: again within
         // the station camera's (+-3%, as --hfov), which rules out the rivals
         // at other opening angles (zoomed-in views of other ranges). Not
-        // one the position check refused: that answer stands.
-        const bool refused = r.position_check && !r.position_check->consistent;
+        // one the position check refused: that answer stands (but for a
+        // pose the inner ridges chose, refused under their stricter limit
+        // only: that doubts the pose, not the station's position).
+        const bool refused = r.position_check && !r.position_check->consistent && !r.position_check->only_ridges_limit;
         if (light && !r.registration.registered && !refused && !po.hfov_deg && !po.hfov_range_deg && !po.camera &&
             !po.initial)
           if (const std::optional<double> hfov = vouch.OpeningAngle(static_cast<double>(image.cols) / image.rows)) {

@@ -27,6 +27,10 @@ void PositionCheckOptions::Check() const {
   if (max_horizons < directions) ThrowField("PositionCheckOptions::max_horizons", max_horizons, ">= directions");
   if (!(max_cost_ratio > 0.0 && max_cost_ratio < 1.0))
     ThrowField("PositionCheckOptions::max_cost_ratio", max_cost_ratio, "0 < ratio < 1");
+  if (!(max_cost_ratio_ridges >= max_cost_ratio && max_cost_ratio_ridges < 1.0))
+    ThrowField("PositionCheckOptions::max_cost_ratio_ridges", max_cost_ratio_ridges, "max_cost_ratio <= ratio < 1");
+  if (!(wide_radius_ridges_m >= 0.0))
+    ThrowField("PositionCheckOptions::wide_radius_ridges_m", wide_radius_ridges_m, ">= 0");
   if (!(min_offset_m >= 0.0)) ThrowField("PositionCheckOptions::min_offset_m", min_offset_m, ">= 0");
   if (!(wide_trigger >= -1.0 && wide_trigger <= 1.0))
     ThrowField("PositionCheckOptions::wide_trigger", wide_trigger, "in [-1, 1] (-1: never)");
@@ -85,6 +89,8 @@ PositionCheck CheckPositionConsistency(const Site& site, const HorizonProfile& h
                                        const PositionCheckOptions& co, ThreadPool* pool) {
   co.Check();
   const auto t0 = std::chrono::steady_clock::now();
+  const double max_cost_ratio = co.ridges_decided ? co.max_cost_ratio_ridges : co.max_cost_ratio;
+  const double wide_radius = co.ridges_decided ? std::max(co.wide_radius_m, co.wide_radius_ridges_m) : co.wide_radius_m;
   PositionCheck out;
   auto finish = [&] {
     out.ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
@@ -222,7 +228,7 @@ PositionCheck CheckPositionConsistency(const Site& site, const HorizonProfile& h
   // A place that fits clearly better, far enough away: the registration is
   // refused once the pattern's centre is one.
   auto passes = [&](const Place& p) {
-    return p.cost < co.max_cost_ratio * given.cost && p.en.norm() >= co.min_offset_m;
+    return p.cost < max_cost_ratio * given.cost && p.en.norm() >= co.min_offset_m;
   };
   auto refused = [&] { return passes(center); };
   // The pattern: from the best of `places` when it beats the centre, else
@@ -265,15 +271,15 @@ PositionCheck CheckPositionConsistency(const Site& site, const HorizonProfile& h
   const bool shallow = unpinned || std::any_of(fitted.begin(), fitted.end(), [&](const Place& p) {
     return p.en.norm() > 1.0 && p.en.norm() <= co.first_step_m + 1.0 && p.cost < (1.0 + co.wide_trigger) * given.cost;
   });
-  if (!refused() && shallow && co.wide_radius_m > co.first_step_m) {
+  if (!refused() && shallow && wide_radius > co.first_step_m) {
     if ((indexed = WithPostTrig(site.window()))) sweep_window = &*indexed;
     places.clear();
     const double s = co.wide_spacing_m, row = s * std::sqrt(0.75);
-    const int rows = static_cast<int>(std::ceil(co.wide_radius_m / row));
+    const int rows = static_cast<int>(std::ceil(wide_radius / row));
     for (int r = -rows; r <= rows; ++r)
       for (int c = -rows - 1; c <= rows + 1; ++c) {
         const Eigen::Vector2d en((c + 0.5 * (r & 1)) * s, r * row);
-        if (en.norm() > co.first_step_m + 0.5 * s && en.norm() <= co.wide_radius_m && en.norm() <= co.max_offset_m)
+        if (en.norm() > co.first_step_m + 0.5 * s && en.norm() <= wide_radius && en.norm() <= co.max_offset_m)
           places.push_back({en});
       }
     // Nearest first, a few places at a time, until one passes the limit:
@@ -299,10 +305,14 @@ PositionCheck CheckPositionConsistency(const Site& site, const HorizonProfile& h
   out.best_offset_en_m = center.en;
   if (refused()) {
     out.consistent = false;
+    out.only_ridges_limit = !(center.cost < co.max_cost_ratio * given.cost);
     std::ostringstream m;
     m << std::fixed << std::setprecision(1) << "the skyline fits clearly better from " << out.OffsetM() / 1000.0
       << " km away at bearing " << std::setprecision(0) << out.BearingDeg() << " deg (cost ratio "
       << std::setprecision(2) << out.cost_ratio << "): the given camera position looks wrong";
+    if (out.only_ridges_limit)
+      m << ", or the pose the inner ridges chose is (its position must fit within " << std::setprecision(2)
+        << max_cost_ratio << ")";
     out.message = m.str();
   }
   return finish();

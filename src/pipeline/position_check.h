@@ -44,6 +44,18 @@ struct PositionCheckOptions {
   // bowls reach 0.68-0.88).
   double max_cost_ratio = 0.90;
   double min_offset_m = 500.0;
+  // A registration whose rivals only the inner ridges ruled out
+  // (pipeline/ridge_check.h; RegisterPhoto sets it): a pose the skyline
+  // alone left ambiguous must sit at the bottom of its bowl. Refused from a
+  // cost ratio of max_cost_ratio_ridges, and the wide look taken out to
+  // wide_radius_ridges_m whatever wide_radius_m (which a station's vouch
+  // sets to 0 in `batch`: its photos' answers stay those of the full check).
+  // The ridges line up from a wrong position 2 km away as well: two ring
+  // probes of the real photos registered 1.2 and 1.6 deg off so under the
+  // plain limit, their best places at 0.907 and 0.945.
+  bool ridges_decided = false;
+  double max_cost_ratio_ridges = 0.97;
+  double wide_radius_ridges_m = 4000.0;
   // The sector computed and searched: the view's opening angle and this
   // much each side (the view turns as the camera moves).
   double view_margin_deg = 15.0;
@@ -75,6 +87,10 @@ struct PositionCheck {
   int wide_places = 0;                            // places of the wide look's grid fitted (0: not needed)
   double ms = 0.0;
   std::string message;  // why it was refused, else empty
+  // Refused only under the stricter limit of a registration the inner
+  // ridges decided (PositionCheckOptions::ridges_decided): no place fits
+  // better than max_cost_ratio, so the pose is doubted, not the position.
+  bool only_ridges_limit = false;
   double OffsetM() const { return best_offset_en_m.norm(); }
   double BearingDeg() const;  // of the best place from the given one, clockwise from north
 };

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: MIT
 #include "pipeline/register_photo.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -180,6 +181,58 @@ std::string UnknownFovHint(const Registration& r, const std::string& fov_source,
   return m.str();
 }
 
+namespace {
+
+// Searches again without the rivals ruled out, at most (each may bring
+// up others among the candidates it refines next).
+constexpr int kRidgeRounds = 4;
+
+// Whether `r` was refused only for a rival: every gate that reads the best
+// pose alone passes (it tells the pose, fits, its residual), and one that
+// reads its rival fails (ambiguity, misfit ratio, evidence).
+bool RefusedForARival(const Registration& r, const RegistrationOptions& o, int width) {
+  if (r.registered || !(r.focal_px > 0.0) || !r.rival || !o.TellsThePose(r.informative_columns, width) ||
+      r.inlier_fraction < o.min_inlier_fraction || !(r.model_rms_px <= o.max_rms_px * ToleranceScale(width)))
+    return false;
+  return r.ambiguity_ratio < o.min_ambiguity_ratio || r.second_misfit < o.min_misfit_ratio * r.misfit ||
+         r.evidence_nats < o.min_evidence_nats;
+}
+
+}  // namespace
+
+Registration RegisterImageWithRidges(const Site& site, const cv::Mat& image, const Skyline& skyline,
+                                     const RegistrationOptions& options, std::optional<RidgeCheck>* check) {
+  const HorizonProfile& horizon = site.horizon();
+  Registration r = RegisterImage(image, skyline, horizon, options);
+  if (!RefusedForARival(r, options, skyline.width)) return r;
+  const PhotoEdges edges = ComputePhotoEdges(image);
+  RegistrationOptions without = options;
+  RidgeCheck all;  // every rival checked, over the rounds
+  // Each search without the rivals ruled out may find others among the
+  // candidates it refines next: checked in turn, a few rounds at most.
+  for (int round = 0; round < kRidgeRounds && RefusedForARival(r, without, skyline.width); ++round) {
+    const RidgeCheck rc = CheckRidges(edges, horizon, site.ridges(), r, without);
+    if (round == 0) all.best = rc.best;
+    all.rivals.insert(all.rivals.end(), rc.rivals.begin(), rc.rivals.end());
+    const std::vector<CameraPose> out = rc.RuledOut();
+    if (out.empty()) break;
+    without.ruled_out_rivals.insert(without.ruled_out_rivals.end(), out.begin(), out.end());
+    r = RegisterImage(image, skyline, horizon, without);
+  }
+  if (check) *check = all;
+  double most = 0.0;  // the largest share among the rivals ruled out
+  int ruled_out = 0;
+  for (const RidgeCheck::Rival& v : all.rivals)
+    if (v.ruled_out) most = std::max(most, v.support.Share()), ++ruled_out;
+  if (ruled_out == 0) return r;
+  std::ostringstream m;
+  m << std::fixed << std::setprecision(0) << " (" << ruled_out << (ruled_out == 1 ? " alternative" : " alternatives")
+    << " ruled out by the inner ridges: " << 100.0 * all.best.Share()
+    << "% of the best pose's ridge points on photo edges, at most " << 100.0 * most << "% of theirs)";
+  r.message += m.str();
+  return r;
+}
+
 PhotoRegistration RegisterPhoto(const Site& site, const cv::Mat& image_in, const PhotoOptions& po, ThreadPool* pool) {
   const cv::Mat image = AsBgr(image_in);
   if (image.type() != CV_8UC3 || image.cols < 8 || image.rows < 8)
@@ -203,7 +256,8 @@ PhotoRegistration RegisterPhoto(const Site& site, const cv::Mat& image_in, const
   const HorizonProfile& horizon = site.horizon();
   Registration& r = out.registration;
   if (!po.initial) {
-    r = RegisterImage(image, out.skyline, horizon, ro);  // with a second look at a near miss
+    // With a second look at a near miss, and the inner ridges' check of a rival.
+    r = RegisterImageWithRidges(site, image, out.skyline, ro, &out.ridge_check);
   } else {
     // A known approximate pose (a fixed camera, a pose a few degrees off):
     // priors of a few degrees, the opening angle within 5% unless given.
@@ -228,7 +282,7 @@ PhotoRegistration RegisterPhoto(const Site& site, const cv::Mat& image_in, const
       // decides and the pose given only vetoes (ConfirmedWithoutPrior).
       RegistrationOptions free = ro;
       free.prior = SensorPrior{};
-      r = ConfirmedWithoutPrior(RegisterImage(image, out.skyline, horizon, free), constrained);
+      r = ConfirmedWithoutPrior(RegisterImageWithRidges(site, image, out.skyline, free, &out.ridge_check), constrained);
     } else {
       // A surveyed position (--trust-position): the search constrained to
       // the pose given, else, when that search fitted no pose, the graduated
@@ -237,7 +291,7 @@ PhotoRegistration RegisterPhoto(const Site& site, const cv::Mat& image_in, const
       // the search fitted no pose: where it did and refused it (a rival
       // nearby, too large a residual), a fit from the start would walk into
       // that rival's basin and, judged alone, pass.
-      r = RegisterImage(image, out.skyline, horizon, constrained);
+      r = RegisterImageWithRidges(site, image, out.skyline, constrained, &out.ridge_check);
       if (!r.registered && !(r.focal_px > 0.0)) {
         r = RefinePose(out.skyline, horizon, start, FocalFromHfovPx(po.initial->hfov_deg, image.cols), hfov_given, ro,
                        50.0);
@@ -254,8 +308,9 @@ PhotoRegistration RegisterPhoto(const Site& site, const cv::Mat& image_in, const
   r.message += UnknownFovHint(r, out.fov_source, image.cols);
   if (po.refine_position) RefinePhotoPosition(site, image, *po.refine_position, ro, out, pool);
   if (po.check_position && r.registered) {
-    out.position_check =
-        CheckPositionConsistency(site, out.Horizon(site), out.skyline, r, ro, *po.check_position, pool);
+    PositionCheckOptions co = *po.check_position;
+    co.ridges_decided = out.ridge_check && !out.ridge_check->RuledOut().empty();
+    out.position_check = CheckPositionConsistency(site, out.Horizon(site), out.skyline, r, ro, co, pool);
     if (!out.position_check->consistent) {
       r.registered = false;
       r.message = out.position_check->message;

@@ -15,6 +15,7 @@
 #include "match/register.h"
 #include "pipeline/position.h"
 #include "pipeline/position_check.h"
+#include "pipeline/ridge_check.h"
 #include "pipeline/site.h"
 #include "sensors/sensors.h"
 #include "skyline/skyline.h"
@@ -84,6 +85,10 @@ struct PhotoRegistration {
   // With PhotoOptions::check_position and a registration to check: the
   // check (its time included in match_ms).
   std::optional<PositionCheck> position_check;
+  // When the search refused the best pose only for a rival that fits almost
+  // as well (ambiguity, misfit or evidence against it): the inner ridges'
+  // check (ridge_check.h), whose ruled-out rivals the search then left out.
+  std::optional<RidgeCheck> ridge_check;
   // The horizon the registration was made at: the refined position's, else the site's.
   const HorizonProfile& Horizon(const Site& site) const { return position ? position->horizon : site.horizon(); }
 };
@@ -103,6 +108,16 @@ RegistrationOptions PhotoRegistrationOptions(const Site& site, const PhotoOption
 // above the ground, wherever it stands (the site only says which).
 RegistrationOptions PhotoRegistrationOptions(bool altitude_given, const PhotoOptions& options, int width, int height,
                                              std::string* fov_source = nullptr);
+
+// RegisterImage at the site's horizon; when that refuses the best pose only
+// for a rival (RefusedForARival: ambiguity, misfit ratio or evidence), the
+// inner ridges' check (CheckRidges over the site's ridges and the photo's
+// edges) and, when it rules out some of the rivals, RegisterImage again
+// without them (RegistrationOptions::ruled_out_rivals), its message saying
+// so. The check, when made, goes to `check`. The position check (a wrong
+// camera position) is the caller's, after it, as for any registration.
+Registration RegisterImageWithRidges(const Site& site, const cv::Mat& image, const Skyline& skyline,
+                                     const RegistrationOptions& options, std::optional<RidgeCheck>* check = nullptr);
 
 // For a photo refused as ambiguous while its opening angle was unknown
 // (fov_source "default": no EXIF focal length, no --hfov): a hint naming

@@ -287,6 +287,25 @@ TEST(PositionCheck, PassesTheTruePositionAndRefusesOneTwoKilometresOff) {
   bad = PositionCheckOptions{};
   bad.wide_trigger = 1.5;
   EXPECT_THROW(bad.Check(), InvalidArgument);
+  bad = PositionCheckOptions{};
+  bad.max_cost_ratio_ridges = 0.8;  // looser than the plain limit
+  EXPECT_THROW(bad.Check(), InvalidArgument);
+  bad = PositionCheckOptions{};
+  bad.wide_radius_ridges_m = -1.0;
+  EXPECT_THROW(bad.Check(), InvalidArgument);
+  // A registration the inner ridges decided is held to the stricter limit:
+  // with the plain limit under the ratio found and the ridges' limit over
+  // it, the same check passes it, and refuses it once the ridges decided.
+  if (c.cost_ratio < 1.0) {
+    PositionCheckOptions ridges;
+    ridges.max_cost_ratio = 0.5 * c.cost_ratio;
+    ridges.max_cost_ratio_ridges = std::min(0.99, 1.5 * c.cost_ratio);
+    EXPECT_TRUE(CheckPositionConsistency(wrong, wrong.horizon(), r.skyline, r.registration, options, ridges, &pool)
+                    .consistent);
+    ridges.ridges_decided = true;
+    EXPECT_FALSE(CheckPositionConsistency(wrong, wrong.horizon(), r.skyline, r.registration, options, ridges, &pool)
+                     .consistent);
+  }
 }
 
 // Given no altitude (the ring's site stands 1.7 m over the ground) and a

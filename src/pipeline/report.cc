@@ -154,6 +154,21 @@ nlohmann::json RegistrationReport(const Site& site, const PhotoRegistration& pho
                      {"message", e.message}};
     j["timing_ms"]["position"] = Rounded(photo.position_ms, 1);
   }
+  if (photo.ridge_check) {
+    // The inner ridges' check of a pose refused for a rival: the share of
+    // the ridge points on photo edges at the best pose and at each rival
+    // checked, and which the ridges ruled out.
+    const RidgeCheck& rc = *photo.ridge_check;
+    nlohmann::json rivals = nlohmann::json::array();
+    for (const RidgeCheck::Rival& v : rc.rivals) {
+      nlohmann::json c = candidate(v.candidate);
+      c["ridge_share"] = Rounded(v.support.Share(), 3);
+      c["ridge_points"] = v.support.points;
+      c["ruled_out"] = v.ruled_out;
+      rivals.push_back(c);
+    }
+    j["ridge_check"] = {{"best_share", Rounded(rc.best.Share(), 3)}, {"best_points", rc.best.points}, {"rivals", rivals}};
+  }
   if (photo.position_check) {
     // Whether the skyline fits clearly better from elsewhere (a wrong
     // position): the best place the check found and its cost ratio.
@@ -163,7 +178,8 @@ nlohmann::json RegistrationReport(const Site& site, const PhotoRegistration& pho
                            {"best_offset_m", Rounded(c.OffsetM(), 0)},
                            {"best_bearing_deg", c.OffsetM() > 0.0 ? Rounded(c.BearingDeg(), 1) : nullptr},
                            {"horizons", c.horizons},
-                           {"wide_places", c.wide_places}};
+                           {"wide_places", c.wide_places},
+                           {"ridges_limit", c.only_ridges_limit}};
     j["timing_ms"]["position_check"] = Rounded(c.ms, 1);
   }
   return j;

@@ -19,11 +19,11 @@ JACKSBORO = "/usr/share/matplotlib/mpl-data/sample_data/jacksboro_fault_dem.npz"
 @pytest.fixture(scope="module")
 def views(tmp_path_factory):
     """Views rendered by `horizonreg demo` at one observer, with their secret poses: seeds 0, 1 and 4
-    register (the demo passes), seed 5 does not (too little evidence: a no_match row)."""
+    register (the demo passes), seed 39 does not (too little evidence: a no_match row)."""
     if not os.path.exists(JACKSBORO):
         pytest.skip("python-matplotlib-data is not installed")
     out = []
-    for seed in (0, 1, 4, 5):
+    for seed in (0, 1, 4, 39):
         d = tmp_path_factory.mktemp(f"demo{seed}")
         p = subprocess.run([BIN, "demo", "--output-dir", str(d), "--seed", str(seed)], capture_output=True, text=True)
         m = re.search(r"secret pose\s+(\S+)\s+(\S+)\s+(\S+)\s+(\S+)", p.stdout)
