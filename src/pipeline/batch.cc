@@ -257,10 +257,10 @@ nlohmann::json ErrorRow(const BatchItem& item, const std::string& message) {
 // least kVouchPhotos registered and passed the full position check (wide
 // look included where their first ring asked for it), and none was refused
 // by it (a pose the inner ridges chose, refused only under their stricter
-// limit, is doubted itself, not the position). A wrong position is refused by the check on most photos (the real
-// photos from 2-10 km away: every probe that registered before the check);
-// one that fooled it on one photo is refused on another before the station
-// is vouched for.
+// limit, is doubted itself, not the position). A wrong position is refused
+// by the check on most photos (the real photos from 2-10 km away: every
+// probe that registered before the check); one that fooled it on one photo
+// is refused on another before the station is vouched for.
 constexpr int kVouchPhotos = 2;
 constexpr size_t kVouchChunk = kVouchPhotos;  // photos registered with the full check at a time ...
 constexpr size_t kVouchTries = 8;             // ... up to this many

@@ -167,7 +167,8 @@ nlohmann::json RegistrationReport(const Site& site, const PhotoRegistration& pho
       c["ruled_out"] = v.ruled_out;
       rivals.push_back(c);
     }
-    j["ridge_check"] = {{"best_share", Rounded(rc.best.Share(), 3)}, {"best_points", rc.best.points}, {"rivals", rivals}};
+    j["ridge_check"] = {
+        {"best_share", Rounded(rc.best.Share(), 3)}, {"best_points", rc.best.points}, {"rivals", rivals}};
   }
   if (photo.position_check) {
     // Whether the skyline fits clearly better from elsewhere (a wrong

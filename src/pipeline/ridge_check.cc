@@ -13,13 +13,13 @@ namespace horizonreg {
 
 namespace {
 // At 1000 columns; pixels scale with the width.
-constexpr double kSmoothPx = 1.0;        // Gaussian sigma of the grey image
-constexpr int kLocalBoxPx = 15;          // the local mean gradient's square
-constexpr double kBelowHorizonPx = 4.0;  // ridge points this near the skyline read the skyline's own edge
-constexpr double kSearchPx = 3.0;        // across the line: the DEM's and the projection's error
-constexpr double kMaxLinkPx = 20.0;      // a longer step to the next bin's ridge is no line
-constexpr float kAcrossOverAlong = 2.0f;  // an aligned edge: across the line at least twice along it
-constexpr float kOverLocalMean = 1.5f;    // ... and standing out of the texture around it
+constexpr double kSmoothPx = 1.0;           // Gaussian sigma of the grey image
+constexpr int kLocalBoxPx = 15;             // the local mean gradient's square
+constexpr double kBelowHorizonPx = 4.0;     // ridge points this near the skyline read the skyline's own edge
+constexpr double kSearchPx = 3.0;           // across the line: the DEM's and the projection's error
+constexpr double kMaxLinkPx = 20.0;         // a longer step to the next bin's ridge is no line
+constexpr float kAcrossOverAlong = 2.0f;    // an aligned edge: across the line at least twice along it
+constexpr float kOverLocalMean = 1.5f;      // ... and standing out of the texture around it
 constexpr double kLinkDistanceShare = 0.1;  // the same ridge in the next bin: its distance within 10%
 }  // namespace
 
@@ -118,14 +118,13 @@ RidgeCheck CheckRidges(const PhotoEdges& edges, const HorizonProfile& horizon,
   for (const PoseCandidate& c : reg.candidates) {
     if (std::abs(AngDiffDeg(c.pose.azimuth_deg, reg.pose.azimuth_deg)) < RegistrationOptions::kRuledOutDeg &&
         std::abs(c.pose.pitch_deg - reg.pose.pitch_deg) < RegistrationOptions::kRuledOutDeg)
-      continue;  // the best solution itself
+      continue;                                                         // the best solution itself
     if (!(c.cost < options.min_ambiguity_ratio * best_cost)) continue;  // no threat
     CameraIntrinsics kc = k;
     kc.focal_px = c.focal_px;
     RidgeCheck::Rival r{c, MeasureRidgeSupport(edges, horizon, ridges, c.pose, kc)};
     r.ruled_out = out.best.points >= kRidgeMinPoints && r.support.points >= kRidgeMinPoints &&
-                  out.best.Share() >= kRidgeMinBestShare &&
-                  out.best.Share() >= kRidgeMinShareRatio * r.support.Share();
+                  out.best.Share() >= kRidgeMinBestShare && out.best.Share() >= kRidgeMinShareRatio * r.support.Share();
     out.rivals.push_back(r);
   }
   return out;
