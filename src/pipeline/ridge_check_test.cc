@@ -51,12 +51,17 @@ cv::Mat Render(const CameraPose& pose, const CameraIntrinsics& k) {
   return img;
 }
 
-TEST(RidgeCheck, TheTruePoseFindsItsRidgesOnEdgesAndAnotherDoesNot) {
+// The view at the true pose, its horizon and ridges.
+class RidgeCheckTest : public ::testing::Test {
+ protected:
   const HorizonProfile h = FlatHorizon();
-  const auto ridges = InnerRidges(h);
+  const std::vector<std::vector<Ridge>> ridges = InnerRidges(h);
   const CameraIntrinsics k = CameraIntrinsics::FromHfov(800, 500, 40.0);
   const CameraPose truth{90.0, 0.0, 0.0};
   const PhotoEdges edges = ComputePhotoEdges(Render(truth, k));
+};
+
+TEST_F(RidgeCheckTest, TheTruePoseFindsItsRidgesOnEdgesAndAnotherDoesNot) {
   const RidgeSupport at_truth = MeasureRidgeSupport(edges, h, ridges, truth, k);
   EXPECT_GT(at_truth.points, 100);
   EXPECT_GT(at_truth.Share(), 0.9);
@@ -73,12 +78,7 @@ TEST(RidgeCheck, TheTruePoseFindsItsRidgesOnEdgesAndAnotherDoesNot) {
   EXPECT_THROW(ComputePhotoEdges(cv::Mat()), InvalidArgument);
 }
 
-TEST(RidgeCheck, RulesOutARivalTheRidgesContradictOnly) {
-  const HorizonProfile h = FlatHorizon();
-  const auto ridges = InnerRidges(h);
-  const CameraIntrinsics k = CameraIntrinsics::FromHfov(800, 500, 40.0);
-  const CameraPose truth{90.0, 0.0, 0.0};
-  const PhotoEdges edges = ComputePhotoEdges(Render(truth, k));
+TEST_F(RidgeCheckTest, RulesOutARivalTheRidgesContradictOnly) {
   Registration reg;
   reg.pose = truth;
   reg.focal_px = k.focal_px;
