@@ -125,6 +125,16 @@ double PriorPenalty(const SensorPrior& prior, const CameraPose& pose) {
 
 }  // namespace
 
+bool RegistrationOptions::WithinRuledOutDeg(const CameraPose& a, const CameraPose& b) {
+  return std::abs(AngDiffDeg(a.azimuth_deg, b.azimuth_deg)) < kRuledOutDeg &&
+         std::abs(a.pitch_deg - b.pitch_deg) < kRuledOutDeg;
+}
+
+bool RegistrationOptions::RulesOut(const CameraPose& pose) const {
+  return std::any_of(ruled_out_rivals.begin(), ruled_out_rivals.end(),
+                     [&](const CameraPose& q) { return WithinRuledOutDeg(pose, q); });
+}
+
 bool WithinPrior(const RegistrationOptions& o, const CameraPose& pose) {
   const SensorPrior& pr = o.prior;
   const double g = pr.gate_sigmas;
@@ -627,13 +637,6 @@ Registration Register(const Skyline& skyline, const HorizonProfile& horizon, con
   const Candidate* second_candidate = nullptr;
   const Candidate* closest_rival = nullptr;  // the distinct alternative of least misfit
   std::vector<uint8_t> merged;               // polished onto the best: no alternative
-  auto ruled_out = [&](const Pose4& c) {
-    const CameraPose p = c.ToPose();
-    return std::any_of(options.ruled_out_rivals.begin(), options.ruled_out_rivals.end(), [&](const CameraPose& q) {
-      return std::abs(AngDiffDeg(p.azimuth_deg, q.azimuth_deg)) < RegistrationOptions::kRuledOutDeg &&
-             std::abs(p.pitch_deg - q.pitch_deg) < RegistrationOptions::kRuledOutDeg;
-    });
-  };
   auto same_solution = [&](const Pose4& c, const Pose4& b) {
     return SamePose(c, b, width) || (NearPose(c, b, width) && scorer.Agreement(c, b, quick, tau) >= 0.5);
   };
@@ -648,7 +651,7 @@ Registration Register(const Skyline& skyline, const HorizonProfile& horizon, con
     const Candidate& b = refined[order[0]];
     for (size_t i = 1; i < order.size(); ++i) {
       const Candidate& c = refined[order[i]];
-      if (merged[order[i]] || same_solution(c.pose, b.pose) || ruled_out(c.pose)) continue;
+      if (merged[order[i]] || same_solution(c.pose, b.pose) || options.RulesOut(c.pose.ToPose())) continue;
       if (!second_candidate || c.cost < second_candidate->cost) second_candidate = &c;
       if (!closest_rival || c.misfit < closest_rival->misfit) closest_rival = &c;
     }

@@ -125,6 +125,11 @@ struct RegistrationOptions {
   // candidate is one.
   std::vector<CameraPose> ruled_out_rivals;
   static constexpr double kRuledOutDeg = 1.0;
+  // Whether poses a and b lie within kRuledOutDeg of each other in azimuth
+  // and pitch (the same pose, for ruling out).
+  static bool WithinRuledOutDeg(const CameraPose& a, const CameraPose& b);
+  // Whether `pose` lies within kRuledOutDeg of one of ruled_out_rivals.
+  bool RulesOut(const CameraPose& pose) const;
   void Check() const;  // Throws InvalidArgument naming the field.
   // Whether the window of opening angles is narrow: max / min < 1.12 (a
   // known --hfov, --initial's +-5%).

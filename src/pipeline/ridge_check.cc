@@ -116,9 +116,8 @@ RidgeCheck CheckRidges(const PhotoEdges& edges, const HorizonProfile& horizon,
   out.best = MeasureRidgeSupport(edges, horizon, ridges, reg.pose, k);
   const double best_cost = reg.candidates.front().cost;
   for (const PoseCandidate& c : reg.candidates) {
-    if (std::abs(AngDiffDeg(c.pose.azimuth_deg, reg.pose.azimuth_deg)) < RegistrationOptions::kRuledOutDeg &&
-        std::abs(c.pose.pitch_deg - reg.pose.pitch_deg) < RegistrationOptions::kRuledOutDeg)
-      continue;                                                         // the best solution itself
+    // The best solution itself, or one ruled out already (an earlier round's).
+    if (RegistrationOptions::WithinRuledOutDeg(c.pose, reg.pose) || options.RulesOut(c.pose)) continue;
     if (!(c.cost < options.min_ambiguity_ratio * best_cost)) continue;  // no threat
     CameraIntrinsics kc = k;
     kc.focal_px = c.focal_px;

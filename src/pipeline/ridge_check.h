@@ -68,10 +68,12 @@ struct RidgeCheck {
 
 // The ridge check of a registration refused as ambiguous (`reg`, its
 // candidates): each candidate that is another solution (more than
-// RegistrationOptions::kRuledOutDeg from the best in azimuth or pitch) and
+// RegistrationOptions::kRuledOutDeg from the best in azimuth or pitch, and
+// not among options.ruled_out_rivals already: an earlier round's) and
 // costs less than min_ambiguity_ratio times the best's is ruled out when
-// the best's ridge support is at least kMinBestShare and kMinShareRatio
-// times the candidate's, each over at least kMinPoints points.
+// the best's ridge support is at least kRidgeMinBestShare and
+// kRidgeMinShareRatio times the candidate's, each over at least
+// kRidgeMinPoints points.
 inline constexpr double kRidgeMinBestShare = 0.45;
 inline constexpr double kRidgeMinShareRatio = 1.4;
 inline constexpr int kRidgeMinPoints = 50;
