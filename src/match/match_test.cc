@@ -417,6 +417,47 @@ TEST(Register, ShortGapsInTheSkylineDoNotHideItsPeaks) {
   EXPECT_GE(r.second_misfit, RegistrationOptions{}.min_misfit_ratio * r.misfit);
 }
 
+// A ridge rising in two steps seen over 40% of the frame, the rest hidden
+// (behind near trees): no peak or dip to pair. With the opening angle
+// known (or a compass bounding the azimuths), the azimuth scan finds the
+// pose; without the scan, or in a wide window with no compass, nothing.
+TEST(Register, TheAzimuthScanRegistersAPlainSkyline) {
+  HorizonProfile p = SyntheticHorizon(0.25, true);
+  for (int i = 0; i < p.size(); ++i) {
+    const double a = DegToRad(p.AzimuthDeg(i));
+    const double az = p.AzimuthDeg(i);  // and two cliffs rising to the east in view: no peak, no dip
+    p.elevation_deg[i] = 1.0 + 1.8 * std::sin(3 * a + 0.3) + 0.9 * std::sin(7 * a + 1.0) +
+                         0.5 / (1.0 + std::exp(-(az - 97.0) / 0.3)) + 0.3 / (1.0 + std::exp(-(az - 106.0) / 0.3));
+  }
+  const CameraPose pose{116.5, -4.0, 4.0};
+  const auto k = CameraIntrinsics::FromHfov(1024, 683, 50.0);
+  Skyline s = SkylineOf(p, pose, k);
+  for (int c = 410; c < s.width; ++c) s.y[c] = NAN, s.confidence[c] = 0.0;
+  RegistrationOptions known;
+  known.min_hfov_deg = 50.0 * 0.97, known.max_hfov_deg = 50.0 * 1.03;
+  const Registration r = Register(s, p, known);
+  ASSERT_TRUE(r.registered) << r.message;
+  EXPECT_GT(r.scanned_hypotheses, 0);
+  EXPECT_NEAR(AngDiffDeg(r.pose.azimuth_deg, pose.azimuth_deg), 0.0, 0.02);
+  EXPECT_NEAR(r.pose.pitch_deg, pose.pitch_deg, 0.02);
+  EXPECT_NEAR(r.pose.roll_deg, pose.roll_deg, 0.05);
+  RegistrationOptions compass;  // any opening angle, the azimuth within 3 x 10 deg
+  compass.prior.compass_deg = 110.0;
+  compass.prior.compass_sigma_deg = 10.0;
+  const Registration c = Register(s, p, compass);
+  ASSERT_TRUE(c.registered) << c.message;
+  EXPECT_NEAR(AngDiffDeg(c.pose.azimuth_deg, pose.azimuth_deg), 0.0, 0.02);
+  EXPECT_NEAR(c.hfov_deg, 50.0, 0.2);
+  RegistrationOptions off = known;
+  off.scan_plain_skylines = false;
+  const Registration without = Register(s, p, off);
+  EXPECT_FALSE(without.registered);
+  EXPECT_EQ(without.scanned_hypotheses, 0);
+  const Registration wide = Register(s, p, {});
+  EXPECT_FALSE(wide.registered && std::abs(AngDiffDeg(wide.pose.azimuth_deg, pose.azimuth_deg)) > 1.0);
+  EXPECT_EQ(wide.scanned_hypotheses, 0);
+}
+
 TEST(Register, FlatOrRepeatingHorizonGivesNoMatch) {
   const CameraPose pose{80.0, 0.0, 0.0};
   const auto k = CameraIntrinsics::FromHfov(1024, 683, 40.0);

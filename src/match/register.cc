@@ -185,6 +185,119 @@ constexpr double kFocalStartFactor = 1.03;
 // share of the width.
 constexpr double kMaxBridgedGap = 0.03;
 
+// Fewer hypotheses from the pairs of peaks and dips than this, and the
+// azimuth is also scanned (ScanAzimuths).
+constexpr int kScanBelowHypotheses = 16;
+constexpr double kScanStepDeg = 0.2;  // azimuth step of the scan
+constexpr size_t kScanKept = 32;      // the scan's best local minima scored
+constexpr double kScanFocalStep = 1.02;  // focal lengths scanned over the window, this ratio apart ...
+constexpr int kScanMaxFocals = 16;        // ... at most this many (a wider window is not scanned) ...
+constexpr int kScanMaxFocalsCompass = 160;  // ... or this many where a compass bounds the azimuths
+
+// Hypotheses of a skyline too plain for pairs of peaks and dips: a gentle
+// ridge, or most of the skyline hidden behind near trees (a rendered view
+// with its terrain skyline 40% visible: two image extrema, no pair of them
+// matching a DEM pair at the opening angle known). Each azimuth (every
+// kScanStepDeg) at each focal length of a narrow window: the pitch and
+// roll that best lay the columns on the DEM horizon there (linearised
+// about a level camera, least squares trimmed twice), ranked by a
+// truncated square of the residuals; the best local minima in azimuth are
+// scored as the pairs' hypotheses are. Only the azimuths a compass prior
+// admits; empty when the window of opening angles is wide and no compass
+// bounds the azimuths.
+std::vector<Candidate> ScanAzimuths(const Scorer& scorer, const HorizonLookup& lookup, const std::vector<Column>& cols,
+                                    const RegistrationOptions& options, double fmin, double fmax, double tau_px) {
+  const SensorPrior& prior = options.prior;
+  const double compass_span = prior.compass_deg ? prior.gate_sigmas * prior.compass_sigma_deg : 180.0;
+  const bool bounded = compass_span < 180.0;
+  std::vector<double> focals;
+  if (fmax <= fmin * (1.0 + 1e-9)) {
+    focals.push_back(fmin);
+  } else {
+    const int n = static_cast<int>(std::ceil(std::log(fmax / fmin) / std::log(kScanFocalStep))) + 1;
+    if (n > (bounded ? kScanMaxFocalsCompass : kScanMaxFocals)) return {};
+    for (int k = 0; k < n; ++k) focals.push_back(fmin * std::pow(fmax / fmin, n > 1 ? k / (n - 1.0) : 0.0));
+  }
+  if (cols.size() < 8) return {};
+  const double first_deg = bounded ? *prior.compass_deg - compass_span : 0.0;
+  const bool closed = !bounded;  // the whole circle: the first and last azimuths are neighbours
+  const int steps =
+      static_cast<int>(std::lround((bounded ? 2.0 * compass_span : 360.0) / kScanStepDeg)) + (bounded ? 1 : 0);
+  const double max_roll = DegToRad(options.max_abs_roll_deg);
+  struct Hit {
+    double score, yaw, pitch, roll, f;
+  };
+  std::vector<Hit> hits;
+  const size_t n = cols.size();
+  std::vector<double> az0(n), el0(n), da(n), db(n), r(n);
+  for (const double f : focals) {
+    // Each column's ray from a level camera looking north, and how its
+    // elevation moves with pitch and roll (numerically: the signs follow
+    // CamFromEnuRad's conventions whatever they are).
+    constexpr double kDelta = 1e-3;
+    auto ray = [&](const Column& c, double pitch, double roll, double& az, double& el) {
+      const Eigen::Vector3d d = CamFromEnuRad(0.0, pitch, roll).transpose() * Eigen::Vector3d(c.u / f, c.v / f, 1.0);
+      az = std::atan2(d.x(), d.y());
+      el = std::atan2(d.z(), std::hypot(d.x(), d.y()));
+    };
+    for (size_t i = 0; i < n; ++i) {
+      double a, e;
+      ray(cols[i], 0.0, 0.0, az0[i], el0[i]);
+      ray(cols[i], kDelta, 0.0, a, e);
+      da[i] = (e - el0[i]) / kDelta;
+      ray(cols[i], 0.0, kDelta, a, e);
+      db[i] = (e - el0[i]) / kDelta;
+    }
+    const double gate = 3.0 * tau_px / f;  // radians
+    std::vector<Hit> row(steps);
+    for (int s = 0; s < steps; ++s) {
+      const double yaw = DegToRad(WrapAzimuthDeg(first_deg + s * kScanStepDeg));
+      for (size_t i = 0; i < n; ++i) {
+        r[i] = lookup(yaw + az0[i]) - el0[i];
+        if (!std::isfinite(r[i])) r[i] = 1.0;  // no horizon there (1 rad): outside every band
+      }
+      // A level camera's pitch (the median offset), then pitch and roll by
+      // least squares over the columns within a wide and a narrow band.
+      std::vector<double> sorted(r);
+      std::nth_element(sorted.begin(), sorted.begin() + n / 2, sorted.end());
+      double pitch = sorted[n / 2], roll = 0.0;
+      for (const double band : {3.0 * gate, gate}) {
+        double saa = 0, sab = 0, sbb = 0, sar = 0, sbr = 0;
+        for (size_t i = 0; i < n; ++i) {
+          if (std::abs(r[i] - da[i] * pitch - db[i] * roll) > band) continue;
+          saa += da[i] * da[i], sab += da[i] * db[i], sbb += db[i] * db[i], sar += da[i] * r[i], sbr += db[i] * r[i];
+        }
+        const double det = saa * sbb - sab * sab;
+        if (!(std::abs(det) > 1e-12)) break;
+        pitch = (sar * sbb - sbr * sab) / det;
+        roll = (saa * sbr - sab * sar) / det;
+      }
+      double score = 0.0;
+      for (size_t i = 0; i < n; ++i) {
+        const double e = (r[i] - da[i] * pitch - db[i] * roll) / gate;
+        score += std::min(e * e, 1.0);
+      }
+      row[s] = {std::abs(roll) <= max_roll ? score : INFINITY, yaw, pitch, roll, f};
+    }
+    for (int s = 0; s < steps; ++s) {
+      const double here = row[s].score;
+      const double before = s > 0 || closed ? row[(s + steps - 1) % steps].score : INFINITY;
+      const double after = s + 1 < steps || closed ? row[(s + 1) % steps].score : INFINITY;
+      if (std::isfinite(here) && here <= before && here < after) hits.push_back(row[s]);
+    }
+  }
+  std::sort(hits.begin(), hits.end(), [](const Hit& a, const Hit& b) { return a.score < b.score; });
+  std::vector<Candidate> out;
+  for (const Hit& h : hits) {
+    if (out.size() >= kScanKept) break;
+    const Pose4 pose{h.yaw, h.pitch, h.roll, h.f, 0.0};
+    if (!WithinPrior(options, pose.ToPose())) continue;
+    const double cost = scorer.Cost(pose, cols);
+    if (std::isfinite(cost)) out.push_back({pose, cost});
+  }
+  return out;
+}
+
 // Whether a and b look within `tol` (radians) of each other in azimuth and pitch.
 bool YawPitchWithin(const Pose4& a, const Pose4& b, double tol) {
   return std::abs(std::remainder(a.yaw - b.yaw, 2 * kPi)) < tol && std::abs(a.pitch - b.pitch) < tol;
@@ -438,8 +551,12 @@ Registration Register(const Skyline& skyline, const HorizonProfile& horizon, con
   const std::vector<Extremum> dem = FindExtrema(horizon.elevation_deg, true, ho);
   out.image_extrema = static_cast<int>(img.size());
   out.horizon_extrema = static_cast<int>(dem.size());
-  if (img.size() < 2 || dem.size() < 2) {
-    out.message = "too few peaks and dips to form hypotheses";
+  // Fewer than two peaks or dips on either side: no pairs, but the azimuth
+  // scan below (a gentle ridge seen through a narrow window of opening angles).
+  const bool pairable = img.size() >= 2 && dem.size() >= 2;
+  const char* kTooFewExtrema = "too few peaks and dips to form hypotheses";
+  if (!pairable && !options.scan_plain_skylines) {
+    out.message = kTooFewExtrema;
     return out;
   }
 
@@ -472,7 +589,7 @@ Registration Register(const Skyline& skyline, const HorizonProfile& horizon, con
   };
   std::vector<ImagePair> pairs;
   const double min_sep = width / 20.0;
-  for (size_t a = 0; a < img.size(); ++a)
+  for (size_t a = 0; pairable && a < img.size(); ++a)
     for (size_t b = a + 1; b < img.size(); ++b)
       if (img[b].position - img[a].position >= min_sep && img_uv[a] && img_uv[b]) pairs.push_back({a, b});
   struct Scored {
@@ -526,12 +643,20 @@ Registration Register(const Skyline& skyline, const HorizonProfile& horizon, con
     out.hypotheses += part.hypotheses;
     scored.insert(scored.end(), part.candidates.begin(), part.candidates.end());
   }
+  // A skyline too plain for the pairs: the azimuth scanned as well.
+  if (options.scan_plain_skylines && out.hypotheses < kScanBelowHypotheses) {
+    const double f0 = frame.known() ? frame.KnownFocalPx() : fmin, f1 = frame.known() ? frame.KnownFocalPx() : fmax;
+    const std::vector<Candidate> scan = ScanAzimuths(scorer, lookup, coarse, options, f0, f1, tau);
+    out.scanned_hypotheses = static_cast<int>(scan.size());
+    out.hypotheses += out.scanned_hypotheses;
+    scored.insert(scored.end(), scan.begin(), scan.end());
+  }
   // The best 64 overall, ties broken by the pose: the same list whichever
   // thread scored which pair.
   std::sort(scored.begin(), scored.end(), ByCost);
   if (scored.size() > kKeptHypotheses) scored.resize(kKeptHypotheses);
   if (scored.empty()) {
-    out.message = "no hypothesis within the opening-angle range and priors";
+    out.message = pairable ? "no hypothesis within the opening-angle range and priors" : kTooFewExtrema;
     return out;
   }
 

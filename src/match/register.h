@@ -74,6 +74,13 @@ struct RegistrationOptions {
   int horizon_extrema = 70;              // Most prominent DEM peaks and dips of each kind, >= 2.
   double min_image_prominence_px = 1.5;  // Image extrema below this are noise, pixels (scaled up for large images).
   double min_horizon_prominence_deg = 0.03;  // DEM extrema below this are noise, degrees.
+  // Where the pairs of peaks and dips give fewer than 16 hypotheses (a
+  // gentle ridge, a skyline mostly hidden behind near trees), the azimuth is
+  // also scanned: every 0.2 deg at each focal length of a narrow window of
+  // opening angles (or of any window when a compass bounds the azimuths),
+  // the pitch and roll fitted to each, the best local minima scored as the
+  // pairs' hypotheses are.
+  bool scan_plain_skylines = true;
   int coarse_columns = 24;                   // Skyline columns scored per hypothesis, >= 8.
   int quick_columns = 120;                   // Skyline columns for refining candidates, >= 8.
   int refine_columns = 300;                  // Skyline columns in the final least squares, >= 8.
@@ -211,6 +218,7 @@ struct Registration {
   std::vector<PoseCandidate> candidates;  // the refined candidates of the search, best first (empty for RefinePose)
   std::optional<PoseCandidate> rival;     // the distinct alternative the ambiguity ratio is taken against (search only)
   int hypotheses = 0;  // hypotheses scored after the constraints
+  int scanned_hypotheses = 0;  // of those, from the azimuth scan (RegistrationOptions::scan_plain_skylines)
   int image_extrema = 0, horizon_extrema = 0;
   // intrinsics for an image of this size (the registered one or a resized copy).
   CameraIntrinsics Intrinsics(int width, int height) const;

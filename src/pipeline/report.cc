@@ -93,6 +93,7 @@ nlohmann::json RegistrationReport(const Site& site, const PhotoRegistration& pho
                    {"outliers_above", r.outliers_above},
                    {"nats", Rounded(r.evidence_nats, 1)}};
   j["hypotheses"] = r.hypotheses;
+  if (r.scanned_hypotheses > 0) j["scanned_hypotheses"] = r.scanned_hypotheses;
   auto candidate = [&](const PoseCandidate& c) {
     return nlohmann::json{{"azimuth_deg", Rounded(c.pose.azimuth_deg, 3)},
                           {"pitch_deg", Rounded(c.pose.pitch_deg, 3)},
