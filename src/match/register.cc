@@ -229,7 +229,7 @@ std::vector<Candidate> ScanAzimuths(const Scorer& scorer, const HorizonLookup& l
   };
   std::vector<Hit> hits;
   const size_t n = cols.size();
-  std::vector<double> az0(n), el0(n), da(n), db(n), r(n);
+  std::vector<double> az0(n), el0(n), da(n), db(n), r(n), sorted(n);
   for (const double f : focals) {
     // Each column's ray from a level camera looking north, and how its
     // elevation moves with pitch and roll (numerically: the signs follow
@@ -258,7 +258,7 @@ std::vector<Candidate> ScanAzimuths(const Scorer& scorer, const HorizonLookup& l
       }
       // A level camera's pitch (the median offset), then pitch and roll by
       // least squares over the columns within a wide and a narrow band.
-      std::vector<double> sorted(r);
+      std::copy(r.begin(), r.end(), sorted.begin());
       std::nth_element(sorted.begin(), sorted.begin() + n / 2, sorted.end());
       double pitch = sorted[n / 2], roll = 0.0;
       for (const double band : {3.0 * gate, gate}) {
