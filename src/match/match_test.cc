@@ -424,8 +424,7 @@ TEST(Register, ShortGapsInTheSkylineDoNotHideItsPeaks) {
 TEST(Register, TheAzimuthScanRegistersAPlainSkyline) {
   HorizonProfile p = SyntheticHorizon(0.25, true);
   for (int i = 0; i < p.size(); ++i) {
-    const double a = DegToRad(p.AzimuthDeg(i));
-    const double az = p.AzimuthDeg(i);  // and two cliffs rising to the east in view: no peak, no dip
+    const double az = p.AzimuthDeg(i), a = DegToRad(az);  // and two cliffs rising to the east in view: no peak, no dip
     p.elevation_deg[i] = 1.0 + 1.8 * std::sin(3 * a + 0.3) + 0.9 * std::sin(7 * a + 1.0) +
                          0.5 / (1.0 + std::exp(-(az - 97.0) / 0.3)) + 0.3 / (1.0 + std::exp(-(az - 106.0) / 0.3));
   }

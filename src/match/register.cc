@@ -216,7 +216,7 @@ std::vector<Candidate> ScanAzimuths(const Scorer& scorer, const HorizonLookup& l
   } else {
     const int n = static_cast<int>(std::ceil(std::log(fmax / fmin) / std::log(kScanFocalStep))) + 1;
     if (n > (bounded ? kScanMaxFocalsCompass : kScanMaxFocals)) return {};
-    for (int k = 0; k < n; ++k) focals.push_back(fmin * std::pow(fmax / fmin, n > 1 ? k / (n - 1.0) : 0.0));
+    for (int k = 0; k < n; ++k) focals.push_back(fmin * std::pow(fmax / fmin, k / (n - 1.0)));  // n >= 2 here
   }
   if (cols.size() < 8) return {};
   const double first_deg = bounded ? *prior.compass_deg - compass_span : 0.0;
@@ -230,23 +230,22 @@ std::vector<Candidate> ScanAzimuths(const Scorer& scorer, const HorizonLookup& l
   std::vector<Hit> hits;
   const size_t n = cols.size();
   std::vector<double> az0(n), el0(n), da(n), db(n), r(n), sorted(n);
+  // Each column's ray from a level camera looking north, and how its
+  // elevation moves with pitch and roll (numerically: the signs follow
+  // CamFromEnuRad's conventions whatever they are).
+  constexpr double kDelta = 1e-3;
+  const Eigen::Matrix3d level = CamFromEnuRad(0.0, 0.0, 0.0).transpose();
+  const Eigen::Matrix3d pitched = CamFromEnuRad(0.0, kDelta, 0.0).transpose();
+  const Eigen::Matrix3d rolled = CamFromEnuRad(0.0, 0.0, kDelta).transpose();
+  auto elevation = [](const Eigen::Vector3d& d) { return std::atan2(d.z(), std::hypot(d.x(), d.y())); };
   for (const double f : focals) {
-    // Each column's ray from a level camera looking north, and how its
-    // elevation moves with pitch and roll (numerically: the signs follow
-    // CamFromEnuRad's conventions whatever they are).
-    constexpr double kDelta = 1e-3;
-    auto ray = [&](const Column& c, double pitch, double roll, double& az, double& el) {
-      const Eigen::Vector3d d = CamFromEnuRad(0.0, pitch, roll).transpose() * Eigen::Vector3d(c.u / f, c.v / f, 1.0);
-      az = std::atan2(d.x(), d.y());
-      el = std::atan2(d.z(), std::hypot(d.x(), d.y()));
-    };
     for (size_t i = 0; i < n; ++i) {
-      double a, e;
-      ray(cols[i], 0.0, 0.0, az0[i], el0[i]);
-      ray(cols[i], kDelta, 0.0, a, e);
-      da[i] = (e - el0[i]) / kDelta;
-      ray(cols[i], 0.0, kDelta, a, e);
-      db[i] = (e - el0[i]) / kDelta;
+      const Eigen::Vector3d v(cols[i].u / f, cols[i].v / f, 1.0);
+      const Eigen::Vector3d d = level * v;
+      az0[i] = std::atan2(d.x(), d.y());
+      el0[i] = elevation(d);
+      da[i] = (elevation(pitched * v) - el0[i]) / kDelta;
+      db[i] = (elevation(rolled * v) - el0[i]) / kDelta;
     }
     const double gate = 3.0 * tau_px / f;  // radians
     std::vector<Hit> row(steps);
