@@ -124,6 +124,11 @@ if command -v gdal_create >/dev/null; then
   "$bin" skyline "$work/grey.png" > "$work/grey.json" && python3 -c "
 import json, sys; j = json.load(open('$work/grey.json')); sys.exit(0 if all(v is None for v in j['y']) and len(j['y']) == 64 else 1)" \
     && ok "uniform image gives all-null, exit 0" || bad "uniform image"
+  gdal_create -q -of GTiff -outsize 6 5 -bands 3 -ot Byte -burn 128 "$work/tiny.tif"
+  gdal_translate -q -of PNG "$work/tiny.tif" "$work/tiny.png"
+  expect_exit2 "register on a 6 x 5 image" register "$work/tiny.png" --dem "$work/tiny.tif" --lat 0 --lon 0 --agl 2 \
+    --json "$work/out.json"
+  grep -q "tiny.png" "$work/stderr" && ok "the 6 x 5 image's error names the file" || bad "tiny image error: $(cat "$work/stderr")"
 fi
 # --- register ---
 if [ -d "$shared/scenes/dev" ]; then

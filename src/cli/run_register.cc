@@ -86,6 +86,9 @@ int RunRegister(const RegisterArgs& a) {
   std::vector<std::string> warnings;
   const cv::Mat image = ReadImage(a.image, a.max_image_mpx * 1e6, &warnings);
   for (const std::string& w : warnings) std::cerr << "horizonreg: warning: " << w << "\n";
+  if (image.cols < 8 || image.rows < 8)
+    throw InvalidArgument("image: '" + a.image + "' is " + std::to_string(image.cols) + " x " +
+                          std::to_string(image.rows) + " pixels; register needs at least 8 x 8");
   PhotoOptions po;
   if (!a.sensors.empty()) po.sensors = ReadSensorJson(a.sensors);
   if (!a.no_exif) po.exif = ReadExif(a.image);
