@@ -84,6 +84,11 @@ Modes (each a per-photo table and a summary):
             copies) from the wrong probes' positions and the other regions'
             DEMs: none may register more than 1 deg off (as the ring's probes)
   ring-stations  (not in the default set) the same from the ring's positions
+  batch-equals  (not in the default set) the wrong probes registered one by
+            one with `register` and through `batch --check-every-photo` (as
+            every probe mode runs them: one process per DEM, a third of the
+            CPU time): fails on any row whose status, pose, opening angle or
+            ambiguity differs
   crop-narrow  (not in the default set; seconds) the same with the centre
             half of the width (a portrait frame cut from a landscape photo:
             not turned, its height whole; --floors crop-narrow=N)
@@ -241,6 +246,90 @@ def register(binary, shared, photo_dir, name, truth, extra, dem=None, lat=None, 
         r = json.load(open(tmp.name))
         r["stderr"] = p.stderr
         return r
+
+
+def register_many(binary, shared, calls, jobs, tmpdir):
+    """What register(binary, shared, **call) answers for each call (a dict of
+    register's keyword arguments), in order, through `batch
+    --check-every-photo`: every row registered on its own, the position
+    check's wide look included, as `register` does (cli/batch_equals_register
+    compares the two row by row, from the true and from wrong positions).
+    One process per DEM and set of whole-run options, split in `jobs` parts
+    run side by side: a process pays its start (about 0.15 s: 160 shared
+    libraries) and its DEM once instead of once per probe, which made the
+    probes a third of the CPU time. --camera, --sensors, --hfov and
+    --initial become the manifest's columns; each row reads its image
+    through its own link (a manifest lists an image once)."""
+    per_row = {"--camera": "camera", "--sensors": "sensors", "--hfov": "hfov_deg"}
+    groups = collections.defaultdict(list)
+    for ix, c in enumerate(calls):
+        t = c["truth"]
+        lat = t["lat"] if c.get("lat") is None else c["lat"]
+        lon = t["lon"] if c.get("lon") is None else c["lon"]
+        row = {"lat": lat, "lon": lon}
+        if c.get("alt", True):
+            row["alt_m"] = t["alt_m"]
+        else:
+            row["agl_m"] = 2
+        extra, whole = list(c.get("extra") or []), []
+        k = 0
+        while k < len(extra):
+            a = extra[k]
+            if a in per_row:
+                row[per_row[a]] = extra[k + 1]
+                k += 2
+                continue
+            if a.startswith("--initial="):
+                row["initial"] = a.partition("=")[2]
+            else:
+                whole.append(a)
+            k += 1
+        image = c.get("image") or os.path.join(c["photo_dir"], t["image"])
+        groups[(c.get("dem") or t["dem"], tuple(whole))].append((ix, image, row))
+    results = [None] * len(calls)
+    parts = []
+    for g, ((dem, whole), members) in enumerate(sorted(groups.items())):
+        for j in range(jobs):
+            share = members[j::jobs]
+            if share:
+                parts.append((f"{g}.{j}", dem, whole, share))
+
+    def run(part):
+        key, dem, whole, share = part
+        folder = os.path.join(tmpdir, "batch." + key)
+        os.makedirs(folder, exist_ok=True)
+        manifest, by_image = [], {}
+        for ix, image, row in share:
+            link = os.path.join(folder, f"{ix}{os.path.splitext(image)[1]}")
+            if os.path.lexists(link):
+                os.remove(link)
+            os.symlink(os.path.abspath(image), link)
+            manifest.append(dict(row, image=link))
+            by_image[link] = ix
+        path = os.path.join(folder, "manifest.json")
+        json.dump(manifest, open(path, "w"))
+        out = os.path.join(folder, "rows.jsonl")
+        if os.path.exists(out):
+            os.remove(out)
+        p = subprocess.run([binary, "batch", path, "--dem", os.path.join(shared, "dem", dem), "-o", out,
+                            "--threads", "1", "--check-every-photo", "--no-progress"] + list(whole),
+                           capture_output=True, text=True)
+        rows = {}
+        if os.path.exists(out):
+            for line in open(out):
+                r = json.loads(line)
+                rows[r.get("image")] = r
+        for link, ix in by_image.items():
+            r = rows.get(link)
+            if r is None:
+                r = {"status": "error", "message": f"batch (exit {p.returncode}) gave no row: "
+                                                   f"{p.stderr.strip()[:120]}"}
+            elif r.get("status") == "error":
+                r = dict(r, message=(r.get("message") or "")[:120])
+            results[ix] = r
+    with concurrent.futures.ThreadPoolExecutor(max_workers=jobs) as pool:
+        list(pool.map(run, parts))
+    return results
 
 
 def opencv_for(mode):
@@ -605,7 +694,7 @@ PHOTOMETRIC = [
 ]
 
 
-def photometric_modes(binary, shared, photos, modes, tmpdir, pool, floors, check):
+def photometric_modes(binary, shared, photos, modes, tmpdir, pool, jobs, floors, check):
     """The photometric and wrong-photometric modes (see the usage); False
     when a check failed."""
     cv2 = opencv_for("photometric")
@@ -654,14 +743,11 @@ def photometric_modes(binary, shared, photos, modes, tmpdir, pool, floors, check
                 print(f"FAIL: photometric {key} ({what}) misses its floor or has a false registration")
                 ok = False
     if "wrong-photometric" in modes:
-        def probe(pr):
-            (name, t, d), label, dem, lat, lon = pr
-            out = []
-            for key, _, _ in PHOTOMETRIC:
-                out.append((name, f"{label}, {key}", register(binary, shared, d, name, t, [], dem=dem, lat=lat,
-                                                              lon=lon, alt=dem is None, image=copies[(name, key)])))
-            return out
-        out = [o for group in pool.map(probe, false_probe_list(photos, shared)) for o in group]
+        runs = [(pr, key) for pr in false_probe_list(photos, shared) for key, _, _ in PHOTOMETRIC]
+        out = [(name, f"{label}, {key}", r) for (((name, _, _), label, _, _, _), key), r in zip(runs, register_many(
+            binary, shared, [dict(photo_dir=d, name=name, truth=t, extra=[], dem=dem, lat=lat, lon=lon,
+                                  alt=dem is None, image=copies[(name, key)])
+                             for ((name, t, d), label, dem, lat, lon), key in runs], jobs, tmpdir))]
         if not report_wrong("wrong position (2-10 km away) or another region's DEM, every photometric change", out):
             ok = ok and not check
     return ok
@@ -841,12 +927,11 @@ def main():
                 print(f"FAIL: --modes {mode} misses its floor or has a false registration")
                 failed = True
         if "wrong-" + mode in modes:
-            def probe_crop(pr):
-                (name, t, d), label, dem, lat, lon = pr
-                path, ct = crops[name]
-                return name, label, register(binary, shared, d, name, ct, [], dem=dem, lat=lat, lon=lon,
-                                             alt=dem is None, image=path)
-            out = list(pool.map(probe_crop, false_probe_list(photos, shared)))
+            probes = false_probe_list(photos, shared)
+            out = [(name, label, r) for ((name, _, _), label, _, _, _), r in zip(probes, register_many(
+                binary, shared, [dict(photo_dir=d, name=name, truth=crops[name][1], extra=[], dem=dem, lat=lat,
+                                      lon=lon, alt=dem is None, image=crops[name][0])
+                                 for (name, t, d), label, dem, lat, lon in probes], jobs, tmpdir))]
             if not report_wrong(f"wrong position (2-10 km away) or another region's DEM, {what}", out) and check:
                 failed = True
     if "traced" in modes:
@@ -894,17 +979,34 @@ def main():
         if check and not (w >= floors["thin"] and g >= floors["thin-given"]):  # NaN (no OpenCV) fails too
             print("FAIL: skyline accuracy or coverage under a thin strip of sky misses its floor")
             failed = True
+    if "batch-equals" in modes:
+        probes = false_probe_list(photos, shared)
+        calls = [dict(photo_dir=d, name=name, truth=t, extra=[], dem=dem, lat=lat, lon=lon, alt=dem is None)
+                 for (name, t, d), label, dem, lat, lon in probes]
+        one = list(pool.map(lambda c: register(binary, shared, **c), calls))
+        many = register_many(binary, shared, calls, jobs, tmpdir)
+        keys = ("status", "message", "azimuth_deg", "pitch_deg", "roll_deg", "hfov_deg", "ambiguity_ratio",
+                "inlier_fraction", "evidence")
+        differ = [(pr[0][0], pr[1], k, a.get(k), b.get(k)) for pr, a, b in zip(probes, one, many) for k in keys
+                  if a.get(k) != b.get(k)]
+        print(f"\n== the wrong probes by `register` and by `batch --check-every-photo`: {len(probes)} probes, "
+              f"{sum(a.get('status') == 'registered' for a in one)} registered, {len(differ)} fields differ ==")
+        for name, label, k, a, b in differ[:20]:
+            print(f"  {name} from {label}: {k} register {a!r} batch {b!r}")
+        if check and differ:
+            print("FAIL: batch rows differ from register's")
+            failed = True
     for mode in ("wrong", "wrong-camera", "wrong-initial", "wrong-noexif", "wrong-hfov", "wrong-range"):
         if mode not in modes:
             continue
         variant = mode.partition("-")[2]
         files = variant_files(variant, photos, tmpdir)
 
-        def probe(ix):
-            i, ((name, t, d), label, dem, lat, lon) = ix
-            return name, label, register(binary, shared, d, name, t, variant_args(variant, name, t, i, files), dem=dem,
-                                         lat=lat, lon=lon, alt=dem is None)
-        out = list(pool.map(probe, enumerate(false_probe_list(photos, shared))))
+        probes = false_probe_list(photos, shared)
+        out = [(name, label, r) for ((name, _, _), label, _, _, _), r in zip(probes, register_many(binary, shared, [
+            dict(photo_dir=d, name=name, truth=t, extra=variant_args(variant, name, t, i, files), dem=dem, lat=lat,
+                 lon=lon, alt=dem is None)
+            for i, ((name, t, d), label, dem, lat, lon) in enumerate(probes)], jobs, tmpdir))]
         if not report_wrong(f"wrong position (2-10 km away) or another region's DEM{VARIANT_TITLES[variant]}", out) \
                 and check:
             failed = True
@@ -927,11 +1029,11 @@ def main():
             copies[name] = os.path.join(tmpdir, name + suffix)
             write(cv2, os.path.join(d, t["image"]), copies[name])
 
-        def probe_copy(pr):
-            (name, t, d), label, dem, lat, lon = pr
-            return name, label, register(binary, shared, d, name, t, [], dem=dem, lat=lat, lon=lon,
-                                         alt=dem is None, image=copies[name])
-        out = list(pool.map(probe_copy, false_probe_list(photos, shared)))
+        probes = false_probe_list(photos, shared)
+        out = [(name, label, r) for ((name, _, _), label, _, _, _), r in zip(probes, register_many(binary, shared, [
+            dict(photo_dir=d, name=name, truth=t, extra=[], dem=dem, lat=lat, lon=lon, alt=dem is None,
+                 image=copies[name])
+            for (name, t, d), label, dem, lat, lon in probes], jobs, tmpdir))]
         if not report_wrong(f"wrong position (2-10 km away) or another region's DEM, {what}", out) and check:
             failed = True
     for ring_mode in [m for m in ("ring", "ring-camera", "ring-initial", "ring-sensors", "ring-noexif", "ring-hfov", "ring-range", "ring-noalt",
@@ -942,11 +1044,10 @@ def main():
         probes = [(p, b, dist) + offset_position(p[1]["lat"], p[1]["lon"], b, dist)
                   for p in photos for b, dist in RING_OFFSETS]
 
-        def ring_probe(ix):
-            i, ((name, t, d), b, dist, lat, lon) = ix
-            return register(binary, shared, d, name, t, variant_args(variant, name, t, i, files), lat=lat, lon=lon,
-                            alt=not variant.startswith("noalt"))
-        out = list(pool.map(ring_probe, enumerate(probes)))
+        out = register_many(binary, shared, [
+            dict(photo_dir=d, name=name, truth=t, extra=variant_args(variant, name, t, i, files), lat=lat, lon=lon,
+                 alt=not variant.startswith("noalt"))
+            for i, ((name, t, d), b, dist, lat, lon) in enumerate(probes)], jobs, tmpdir)
         print(f"\n== a ring of wrong positions: 12 bearings at 2, 3 and 5 km ({len(probes)} probes)"
               f"{VARIANT_TITLES[variant]} ==")
         print(f"{'photo':<24}{'registered':>11}{'false':>6}  false ones (bearing/km: error deg, cost ratio)")
@@ -981,10 +1082,9 @@ def main():
         runs = [(p, "truth", None, None, None, True, pe) for p in photos for pe in PERTURBATIONS]
         runs += [w + (w[2] is None, pe) for w in false_probe_list(photos, shared) for pe in PERTURBATIONS]
 
-        def perturbed(x):
-            (name, t, d), label, dem, lat, lon, alt, pe = x
-            return register(binary, shared, d, name, t, pe, dem=dem, lat=lat, lon=lon, alt=alt)
-        results = list(pool.map(perturbed, runs))
+        results = register_many(binary, shared, [
+            dict(photo_dir=d, name=name, truth=t, extra=pe, dem=dem, lat=lat, lon=lon, alt=alt)
+            for (name, t, d), label, dem, lat, lon, alt, pe in runs], jobs, tmpdir)
         print(f"\n== perturbed: plain and wrong under {len(PERTURBATIONS)} samplings and refractions "
               "(" + "; ".join(" ".join(pe) or "defaults" for pe in PERTURBATIONS) + ") ==")
         print(f"{'photo':<24}{'correct':>8}  cost ratios")
@@ -1028,7 +1128,7 @@ def main():
             print("FAIL: a perturbed run registered falsely or failed")
             failed = True
     if any(m in modes for m in ("photometric", "wrong-photometric")):
-        if not photometric_modes(binary, shared, photos, modes, tmpdir, pool, floors, check):
+        if not photometric_modes(binary, shared, photos, modes, tmpdir, pool, jobs, floors, check):
             failed = True
     if any(m in modes for m in ("stations", "wrong-stations", "ring-stations")):
         if not stations_modes(binary, shared, photos, modes, tmpdir, pool, floors, check):
