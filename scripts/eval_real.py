@@ -248,84 +248,78 @@ def register(binary, shared, photo_dir, name, truth, extra, dem=None, lat=None, 
         return r
 
 
+def batch_rows(binary, shared, dem, rows, extra, stem):
+    """`batch` over a JSON manifest of `rows` (dicts: image, lat, lon,
+    alt_m or agl_m, ...) against SHARED/dem/DEM with the options `extra`, on
+    one thread; files STEM.json and STEM.jsonl. Returns ({image: row}, the
+    finished process)."""
+    manifest, out = stem + ".json", stem + ".jsonl"
+    json.dump(rows, open(manifest, "w"))
+    if os.path.exists(out):
+        os.remove(out)
+    p = subprocess.run([binary, "batch", manifest, "--dem", os.path.join(shared, "dem", dem), "-o", out,
+                        "--threads", "1", "--no-progress"] + list(extra), capture_output=True, text=True)
+    got = {r["image"]: r for r in map(json.loads, open(out))} if os.path.exists(out) else {}
+    return got, p
+
+
 def register_many(binary, shared, calls, jobs, tmpdir):
     """What register(binary, shared, **call) answers for each call (a dict of
     register's keyword arguments), in order, through `batch
     --check-every-photo`: every row registered on its own, the position
-    check's wide look included, as `register` does (cli/batch_equals_register
-    compares the two row by row, from the true and from wrong positions).
-    One process per DEM and set of whole-run options, split in `jobs` parts
-    run side by side: a process pays its start (about 0.15 s: 160 shared
-    libraries) and its DEM once instead of once per probe, which made the
-    probes a third of the CPU time. --camera, --sensors, --hfov and
-    --initial become the manifest's columns; each row reads its image
-    through its own link (a manifest lists an image once)."""
+    check's wide look included, as `register` does (batch-equals compares
+    the two on the wrong probes; cli/batch_equals_register on the true
+    positions). One process per DEM and set of whole-run options, split in
+    `jobs` parts run side by side: a process pays its start (about 0.15 s:
+    160 shared libraries) and its first DEM once instead of once per probe,
+    which made the probes a third of the CPU time. --camera, --sensors,
+    --hfov and --initial become the manifest's columns; each row reads its
+    image through its own link (a manifest lists an image once)."""
     per_row = {"--camera": "camera", "--sensors": "sensors", "--hfov": "hfov_deg"}
     groups = collections.defaultdict(list)
     for ix, c in enumerate(calls):
         t = c["truth"]
-        lat = t["lat"] if c.get("lat") is None else c["lat"]
-        lon = t["lon"] if c.get("lon") is None else c["lon"]
-        row = {"lat": lat, "lon": lon}
+        row = {"lat": t["lat"] if c.get("lat") is None else c["lat"],
+               "lon": t["lon"] if c.get("lon") is None else c["lon"]}
         if c.get("alt", True):
             row["alt_m"] = t["alt_m"]
         else:
             row["agl_m"] = 2
-        extra, whole = list(c.get("extra") or []), []
-        k = 0
+        extra, whole, k = list(c.get("extra") or []), [], 0
         while k < len(extra):
-            a = extra[k]
-            if a in per_row:
-                row[per_row[a]] = extra[k + 1]
-                k += 2
-                continue
-            if a.startswith("--initial="):
-                row["initial"] = a.partition("=")[2]
+            if extra[k] in per_row:
+                row[per_row[extra[k]]] = extra[k + 1]
+                k += 1
+            elif extra[k].startswith("--initial="):
+                row["initial"] = extra[k].partition("=")[2]
             else:
-                whole.append(a)
+                whole.append(extra[k])
             k += 1
         image = c.get("image") or os.path.join(c["photo_dir"], t["image"])
         groups[(c.get("dem") or t["dem"], tuple(whole))].append((ix, image, row))
+    parts = [(f"{g}.{j}", dem, whole, members[j::jobs])
+             for g, ((dem, whole), members) in enumerate(sorted(groups.items())) for j in range(jobs)
+             if members[j::jobs]]
     results = [None] * len(calls)
-    parts = []
-    for g, ((dem, whole), members) in enumerate(sorted(groups.items())):
-        for j in range(jobs):
-            share = members[j::jobs]
-            if share:
-                parts.append((f"{g}.{j}", dem, whole, share))
 
     def run(part):
         key, dem, whole, share = part
         folder = os.path.join(tmpdir, "batch." + key)
         os.makedirs(folder, exist_ok=True)
-        manifest, by_image = [], {}
+        rows, index = [], {}
         for ix, image, row in share:
             link = os.path.join(folder, f"{ix}{os.path.splitext(image)[1]}")
             if os.path.lexists(link):
                 os.remove(link)
             os.symlink(os.path.abspath(image), link)
-            manifest.append(dict(row, image=link))
-            by_image[link] = ix
-        path = os.path.join(folder, "manifest.json")
-        json.dump(manifest, open(path, "w"))
-        out = os.path.join(folder, "rows.jsonl")
-        if os.path.exists(out):
-            os.remove(out)
-        p = subprocess.run([binary, "batch", path, "--dem", os.path.join(shared, "dem", dem), "-o", out,
-                            "--threads", "1", "--check-every-photo", "--no-progress"] + list(whole),
-                           capture_output=True, text=True)
-        rows = {}
-        if os.path.exists(out):
-            for line in open(out):
-                r = json.loads(line)
-                rows[r.get("image")] = r
-        for link, ix in by_image.items():
-            r = rows.get(link)
+            rows.append(dict(row, image=link))
+            index[link] = ix
+        got, p = batch_rows(binary, shared, dem, rows, ["--check-every-photo"] + list(whole),
+                            os.path.join(folder, "manifest"))
+        for link, ix in index.items():
+            r = got.get(link)
             if r is None:
-                r = {"status": "error", "message": f"batch (exit {p.returncode}) gave no row: "
-                                                   f"{p.stderr.strip()[:120]}"}
-            elif r.get("status") == "error":
-                r = dict(r, message=(r.get("message") or "")[:120])
+                r = {"status": "error", "message": f"batch (exit {p.returncode}) gave no row: {p.stderr.strip()[:120]}"}
             results[ix] = r
     with concurrent.futures.ThreadPoolExecutor(max_workers=jobs) as pool:
         list(pool.map(run, parts))
@@ -1161,18 +1155,13 @@ def stations_modes(binary, shared, photos, modes, tmpdir, pool, floors, check):
     def run_batch(members, lat, lon, dem, alt, extra, tag):
         """The rows of one batch (image path -> row)."""
         k = hashlib.sha1(repr((members[0][2], lat, lon, dem, alt, extra)).encode()).hexdigest()[:12]
-        manifest, out = os.path.join(tmpdir, f"st_{tag}_{k}.csv"), os.path.join(tmpdir, f"st_{tag}_{k}.jsonl")
-        with open(manifest, "w") as f:
-            f.write("image,lat,lon,alt_m,agl_m\n")
-            for _, _, image in members:
-                f.write(f"{image},{lat!r},{lon!r},{alt if alt is not None else ''},{'' if alt is not None else 2}\n")
-        if os.path.exists(out):
-            os.remove(out)
-        p = subprocess.run([binary, "batch", manifest, "--dem", os.path.join(shared, "dem", dem), "-o", out,
-                            "--threads", "1", "--no-progress"] + extra, capture_output=True, text=True)
+        height = {"alt_m": alt} if alt is not None else {"agl_m": 2}
+        got, p = batch_rows(binary, shared, dem, [dict(height, image=image, lat=lat, lon=lon)
+                                                  for _, _, image in members], extra,
+                            os.path.join(tmpdir, f"st_{tag}_{k}"))
         if p.returncode != 0:
             return {image: {"status": "error", "message": p.stderr.strip()[:120]} for _, _, image in members}
-        return {r["image"]: r for r in map(json.loads, open(out))}
+        return got
 
     ok = True
     vouched = lambda r: "station_vouched_by" in (r.get("position_check") or {})
