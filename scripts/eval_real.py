@@ -87,8 +87,8 @@ Modes (each a per-photo table and a summary):
   batch-equals  (not in the default set) the wrong probes registered one by
             one with `register` and through `batch --check-every-photo` (as
             every probe mode runs them: one process per DEM, a third of the
-            CPU time): fails on any row whose status, pose, opening angle or
-            ambiguity differs
+            CPU time): fails on any row whose status, message, pose, opening
+            angle, ambiguity, inlier fraction or evidence differs
   crop-narrow  (not in the default set; seconds) the same with the centre
             half of the width (a portrait frame cut from a landscape photo:
             not turned, its height whole; --floors crop-narrow=N)
@@ -214,6 +214,20 @@ def false_probe_list(photos, shared):
             if os.path.exists(os.path.join(shared, "dem", dem)):
                 probes.append((p, dem, dem, lat, lon))
     return probes
+
+
+def probe_call(probe, extra=(), image=None, truth=None):
+    """register's keyword arguments (register_many's call) for a false
+    probe of false_probe_list, on `image` (a copy, else the photo) with the
+    truth `truth` (a crop's, else the photo's)."""
+    (name, t, d), _, dem, lat, lon = probe
+    return dict(photo_dir=d, name=name, truth=truth or t, extra=list(extra), dem=dem, lat=lat, lon=lon,
+                alt=dem is None, image=image)
+
+
+def probe_rows(binary, shared, probes, calls, jobs, tmpdir):
+    """(photo, label, row) of each false probe, registered with its call."""
+    return [(pr[0][0], pr[1], r) for pr, r in zip(probes, register_many(binary, shared, calls, jobs, tmpdir))]
 
 
 def report_wrong(title, out):
@@ -738,10 +752,9 @@ def photometric_modes(binary, shared, photos, modes, tmpdir, pool, jobs, floors,
                 ok = False
     if "wrong-photometric" in modes:
         runs = [(pr, key) for pr in false_probe_list(photos, shared) for key, _, _ in PHOTOMETRIC]
-        out = [(name, f"{label}, {key}", r) for (((name, _, _), label, _, _, _), key), r in zip(runs, register_many(
-            binary, shared, [dict(photo_dir=d, name=name, truth=t, extra=[], dem=dem, lat=lat, lon=lon,
-                                  alt=dem is None, image=copies[(name, key)])
-                             for ((name, t, d), label, dem, lat, lon), key in runs], jobs, tmpdir))]
+        out = [(name, f"{label}, {key}", r) for (name, label, r), (_, key) in zip(probe_rows(
+            binary, shared, [pr for pr, _ in runs], [probe_call(pr, image=copies[(pr[0][0], key)]) for pr, key in runs],
+            jobs, tmpdir), runs)]
         if not report_wrong("wrong position (2-10 km away) or another region's DEM, every photometric change", out):
             ok = ok and not check
     return ok
@@ -922,10 +935,8 @@ def main():
                 failed = True
         if "wrong-" + mode in modes:
             probes = false_probe_list(photos, shared)
-            out = [(name, label, r) for ((name, _, _), label, _, _, _), r in zip(probes, register_many(
-                binary, shared, [dict(photo_dir=d, name=name, truth=crops[name][1], extra=[], dem=dem, lat=lat,
-                                      lon=lon, alt=dem is None, image=crops[name][0])
-                                 for (name, t, d), label, dem, lat, lon in probes], jobs, tmpdir))]
+            out = probe_rows(binary, shared, probes, [probe_call(pr, image=crops[pr[0][0]][0], truth=crops[pr[0][0]][1])
+                                                      for pr in probes], jobs, tmpdir)
             if not report_wrong(f"wrong position (2-10 km away) or another region's DEM, {what}", out) and check:
                 failed = True
     if "traced" in modes:
@@ -975,8 +986,7 @@ def main():
             failed = True
     if "batch-equals" in modes:
         probes = false_probe_list(photos, shared)
-        calls = [dict(photo_dir=d, name=name, truth=t, extra=[], dem=dem, lat=lat, lon=lon, alt=dem is None)
-                 for (name, t, d), label, dem, lat, lon in probes]
+        calls = [probe_call(pr) for pr in probes]
         one = list(pool.map(lambda c: register(binary, shared, **c), calls))
         many = register_many(binary, shared, calls, jobs, tmpdir)
         keys = ("status", "message", "azimuth_deg", "pitch_deg", "roll_deg", "hfov_deg", "ambiguity_ratio",
@@ -997,10 +1007,8 @@ def main():
         files = variant_files(variant, photos, tmpdir)
 
         probes = false_probe_list(photos, shared)
-        out = [(name, label, r) for ((name, _, _), label, _, _, _), r in zip(probes, register_many(binary, shared, [
-            dict(photo_dir=d, name=name, truth=t, extra=variant_args(variant, name, t, i, files), dem=dem, lat=lat,
-                 lon=lon, alt=dem is None)
-            for i, ((name, t, d), label, dem, lat, lon) in enumerate(probes)], jobs, tmpdir))]
+        out = probe_rows(binary, shared, probes, [probe_call(pr, variant_args(variant, pr[0][0], pr[0][1], i, files))
+                                                  for i, pr in enumerate(probes)], jobs, tmpdir)
         if not report_wrong(f"wrong position (2-10 km away) or another region's DEM{VARIANT_TITLES[variant]}", out) \
                 and check:
             failed = True
@@ -1024,10 +1032,8 @@ def main():
             write(cv2, os.path.join(d, t["image"]), copies[name])
 
         probes = false_probe_list(photos, shared)
-        out = [(name, label, r) for ((name, _, _), label, _, _, _), r in zip(probes, register_many(binary, shared, [
-            dict(photo_dir=d, name=name, truth=t, extra=[], dem=dem, lat=lat, lon=lon, alt=dem is None,
-                 image=copies[name])
-            for (name, t, d), label, dem, lat, lon in probes], jobs, tmpdir))]
+        out = probe_rows(binary, shared, probes, [probe_call(pr, image=copies[pr[0][0]]) for pr in probes], jobs,
+                         tmpdir)
         if not report_wrong(f"wrong position (2-10 km away) or another region's DEM, {what}", out) and check:
             failed = True
     for ring_mode in [m for m in ("ring", "ring-camera", "ring-initial", "ring-sensors", "ring-noexif", "ring-hfov", "ring-range", "ring-noalt",
