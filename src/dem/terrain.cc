@@ -345,6 +345,8 @@ struct Terrain::Impl {
   std::vector<std::string> paths;
 };
 
+void EnsureGdalRegistered() { InitGdalOnce(); }
+
 Terrain::Terrain(const std::vector<std::string>& paths) : impl_(std::make_unique<Impl>()) {
   if (paths.empty()) throw InvalidArgument("dem: no DEM file given");
   InitGdalOnce();

@@ -104,4 +104,12 @@ class Terrain {
 // SRTM tiles off a coast. Land below sea level would read as sea.
 void AddSeaLevel(TerrainWindow& window, const GeodeticPoint& center, double radius_m);
 
+// GDAL's drivers registered (once per process) and its errors silenced.
+// OpenCV's image decoding registers them too, on its first call (its GDAL
+// decoder), and two registrations at once crash (seen: GDALRegister_WMS,
+// a DEM opened on one thread while another decoded its first photo). So
+// whatever decodes images calls this first: OpenCV's registration then
+// always finds the drivers in place.
+void EnsureGdalRegistered();
+
 }  // namespace horizonreg

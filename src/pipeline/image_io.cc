@@ -13,6 +13,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <vector>
 
+#include "dem/terrain.h"
 #include "util/errors.h"
 
 namespace horizonreg {
@@ -139,6 +140,7 @@ cv::Mat ReadImage(const std::string& path, double max_pixels, std::vector<std::s
                   size->first, size->second, size->first * 1e-6 * size->second, max_pixels * 1e-6);
     throw InvalidArgument("image: '" + path + "' is " + m);
   }
+  EnsureGdalRegistered();  // before OpenCV's first decode registers GDAL's drivers itself
   cv::Mat image;
   // The codec libraries print their warnings ("Corrupt JPEG data: ...") on
   // the standard error themselves: they are caught there and returned in our
