@@ -14,8 +14,8 @@
 // it: `GLIBC_TUNABLES=` keeps glibc's defaults). A one-shot process touches
 // its 100-150 MB once: in 4 KB pages each first touch is a page fault,
 // dearer still in a virtual machine. Measured (real photos, `register
-// --trust-position`, medians of 2-3 runs, 2 cores): timing_ms.total 176-204
-// -> 105-117 ms, CPU 0.45-0.52 -> 0.30-0.33 s, the JSON identical; max RSS
+// --trust-position`, medians of 2-3 runs, 2 cores): timing_ms.total 170-204
+// -> 104-131 ms, CPU 0.45-0.51 -> 0.30-0.37 s, the JSON identical; max RSS
 // 116 -> 132 MB; huge pages without the larger growth 166 ms, the larger
 // growth without huge pages 181 ms.
 #include <unistd.h>
@@ -35,8 +35,7 @@ int main(int argc, char** argv) {
     for (int i = 2; i < argc; ++i)
       if (std::strcmp(argv[i], "--plot") == 0 || std::strncmp(argv[i], "--plot=", 7) == 0) target = "horizonreg-full";
   }
-  if (std::getenv("GLIBC_TUNABLES") == nullptr)
-    setenv("GLIBC_TUNABLES", "glibc.malloc.hugetlb=1:glibc.malloc.top_pad=67108864", 0);
+  setenv("GLIBC_TUNABLES", "glibc.malloc.hugetlb=1:glibc.malloc.top_pad=67108864", 0);  // 0: the caller's stays
   std::error_code ec;
   const std::filesystem::path self = std::filesystem::read_symlink("/proc/self/exe", ec);
   const std::filesystem::path helper = (ec ? std::filesystem::path(argv[0]) : self).parent_path() / target;

@@ -21,6 +21,17 @@
 #include "util/errors.h"
 
 namespace horizonreg {
+
+// GDAL prints its errors to stderr unless told otherwise; the library never
+// prints, so errors are silenced and read back with CPLGetLastErrorMsg.
+void EnsureGdalRegistered() {
+  static std::once_flag once;
+  std::call_once(once, [] {
+    GDALAllRegister();
+    CPLSetErrorHandler(CPLQuietErrorHandler);
+  });
+}
+
 namespace {
 
 constexpr float kVoidSentinel = -1.0e30f;
@@ -34,15 +45,6 @@ std::string LastGdalMessage() {
   return msg;
 }
 
-// GDAL prints its errors to stderr unless told otherwise; the library never
-// prints, so errors are silenced and read back with CPLGetLastErrorMsg.
-void InitGdalOnce() {
-  static std::once_flag once;
-  std::call_once(once, [] {
-    GDALAllRegister();
-    CPLSetErrorHandler(CPLQuietErrorHandler);
-  });
-}
 
 struct SrsDeleter {
   void operator()(void* p) const { OSRDestroySpatialReference(static_cast<OGRSpatialReferenceH>(p)); }
@@ -345,11 +347,9 @@ struct Terrain::Impl {
   std::vector<std::string> paths;
 };
 
-void EnsureGdalRegistered() { InitGdalOnce(); }
-
 Terrain::Terrain(const std::vector<std::string>& paths) : impl_(std::make_unique<Impl>()) {
   if (paths.empty()) throw InvalidArgument("dem: no DEM file given");
-  InitGdalOnce();
+  EnsureGdalRegistered();
   impl_->paths = paths;
   for (const auto& p : paths) impl_->sources.push_back(OpenSource(p));
 }
