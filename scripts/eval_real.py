@@ -126,6 +126,7 @@ Modes (each a per-photo table and a summary):
             veil (JPEG quality 95, EXIF kept). Per change: the photos within
             0.5 deg (--floors photometric=N, each change; default 0), the
             false ones (0) and the skyline's traced columns within 2 px
+            (over all changes: --floors photometric-skyline=W, default 0)
   wrong-photometric  (not in the default set; minutes) the wrong probes on
             every photometric copy
   jpeg30-skyline  (not in the default set; seconds) the skyline of the
@@ -722,6 +723,7 @@ def photometric_modes(binary, shared, photos, modes, tmpdir, pool, jobs, floors,
     if "photometric" in modes:
         print("\n== no prior, each photo changed as another camera, exposure or weather would (JPEG 95, EXIF kept) ==")
         print(f"{'change':<10}{'within 0.5':>11}{'false':>6}{'sky<=2px':>9}{'given':>7}  not registered")
+        all_traced = all_within = all_good = 0
         for key, what, _ in PHOTOMETRIC:
             def run(p):
                 r = register(binary, shared, p[2], p[0], p[1], [], image=copies[(p[0], key)])
@@ -745,11 +747,19 @@ def photometric_modes(binary, shared, photos, modes, tmpdir, pool, jobs, floors,
                 traced, given, within = traced + len(columns), given + len(signed), within + sum(
                     abs(v) <= 2 for v in signed)
             w = within / traced if traced else float("nan")
+            all_traced, all_within, all_good = all_traced + traced, all_within + within, all_good + good
             print(f"{key:<10}{good:>8}/{len(photos):<2}{len(false):>6}{100 * w:>8.1f}%{100 * given / max(traced, 1):>6.1f}%"
                   f"  {' '.join(missed)}{' FALSE: ' + ' '.join(false) if false else ''}")
             if check and (good < floors.get("photometric", 0) or false):
                 print(f"FAIL: photometric {key} ({what}) misses its floor or has a false registration")
                 ok = False
+        w = all_within / all_traced if all_traced else float("nan")
+        print(f"all changes: {all_good} of {len(photos) * len(PHOTOMETRIC)} within 0.5 deg; skyline: {100 * w:.1f}% "
+              f"of the traced columns within 2 px")
+        if check and all_traced and w < floors.get("photometric-skyline", 0.0):
+            print(f"FAIL: the changed copies' skyline {100 * w:.1f}% within 2 px is under its floor "
+                  f"{100 * floors['photometric-skyline']:.1f}%")
+            ok = False
     if "wrong-photometric" in modes:
         runs = [(pr, key) for pr in false_probe_list(photos, shared) for key, _, _ in PHOTOMETRIC]
         out = [(name, f"{label}, {key}", r) for (name, label, r), (_, key) in zip(probe_rows(
@@ -772,7 +782,7 @@ def main():
               "registered-skyline": 0.9, "registered-skyline-given": 0.95,
               "thin-given": 0.95, "ring": 0, "ring-camera": 0, "ring-initial": 0, "ring-sensors": 0, "ring-noexif": 0, "ring-hfov": 0, "ring-range": 0, "ring-noalt": 0, "ring-noalt-hfov": 0, "hfov": 12,
               "sensors": 0, "noexif": 0, "reencode": 0, "gray": 0, "upscale2": 0, "upscale4": 0, "jpeg50": 0, "jpeg30": 0, "crop": 0, "crop-narrow": 0, "stations": 0, "turned": 0, "banner": 0, "gray-skyline": 0.0,
-              "jpeg30-skyline": 0.0, "photometric": 0}
+              "jpeg30-skyline": 0.0, "photometric": 0, "photometric-skyline": 0.0}
     for kv in (opt("--floors") or "").split(","):
         if "=" in kv:
             k, v = kv.split("=")
