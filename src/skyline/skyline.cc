@@ -831,8 +831,9 @@ double GreyNoiseSigma(const cv::Mat& bgr) {
     const uint8_t* p = bgr.ptr<uint8_t>(r);
     for (int x = 0; x < w; ++x) out[x] = 29 * p[3 * x] + 150 * p[3 * x + 1] + 77 * p[3 * x + 2];
   };
-  // |response| in whole grey levels: at most 16 * 255.
-  std::vector<int64_t> hist(16 * 255 + 1, 0);
+  // |response| in 1/16 grey levels, the last bin holding everything from
+  // 256 levels on (only the lower quartile is read).
+  std::vector<int64_t> hist(4097, 0);
   int64_t n = 0;
   for (int r = 1; r + 1 < h; r += 4) {
     luma(r - 1, rows[0]), luma(r, rows[1]), luma(r + 1, rows[2]);
@@ -840,20 +841,21 @@ double GreyNoiseSigma(const cv::Mat& bgr) {
     for (int x = 1; x + 1 < w; ++x) {
       const int v = (a[x - 1] - 2 * a[x] + a[x + 1]) - 2 * (b[x - 1] - 2 * b[x] + b[x + 1]) +
                     (c[x - 1] - 2 * c[x] + c[x + 1]);
-      ++hist[std::min<size_t>(hist.size() - 1, static_cast<size_t>((std::abs(v) + 128) >> 8))];
+      ++hist[std::min(4096, std::abs(v) >> 4)];
       ++n;
     }
   }
   if (n == 0) return 0.0;
-  // The median's bin, its count split evenly over the bin's width.
+  // The lower quartile, not the median: edges and texture (a glacier's
+  // crevasses filling the frame) raise the upper part of the distribution,
+  // noise all of it. For white noise of sigma s the response is normal with
+  // sigma 6 s, and a quarter of its absolute values lie under 0.3186 * 6 s.
+  // The quartile's bin, its count spread evenly over the bin's width.
   int64_t below = 0;
   size_t i = 0;
-  while (i + 1 < hist.size() && 2 * (below + hist[i]) < n) below += hist[i++];
-  const double within = hist[i] > 0 ? (0.5 * n - below) / hist[i] : 0.5;
-  const double median = std::max(0.0, i - 0.5 + within);
-  // For white noise of sigma s the response is normal with sigma 6 s, its
-  // median absolute value 0.6745 * 6 s.
-  return median / (0.6745 * 6.0);
+  while (i + 1 < hist.size() && 4 * (below + hist[i]) < n) below += hist[i++];
+  const double within = hist[i] > 0 ? (0.25 * n - below) / hist[i] : 0.0;
+  return (i + within) / 16.0 / (0.3186 * 6.0);
 }
 
 cv::Mat QuietNoise(const cv::Mat& bgr) {
