@@ -31,30 +31,6 @@ void BM_Skyline(benchmark::State& state) {
 }
 BENCHMARK(BM_Skyline)->Args({1024, 683})->Args({4000, 3000})->Unit(benchmark::kMillisecond);
 
-// What every extraction pays to read the pixel noise (GreyNoiseSigma), and
-// what a noisy one pays to smooth it (QuietNoise on the scene with a
-// camera's noise of 6 levels per channel), at 1024 x 683.
-void BM_GreyNoiseSigma(benchmark::State& state) {
-  const cv::Mat img = LoadScene(1024, 683);
-  if (img.empty()) return state.SkipWithError("../shared is absent");
-  for (auto _ : state) benchmark::DoNotOptimize(GreyNoiseSigma(img));
-}
-BENCHMARK(BM_GreyNoiseSigma)->Unit(benchmark::kMillisecond);
-
-void BM_QuietNoise(benchmark::State& state) {
-  cv::setNumThreads(1);
-  cv::Mat img = LoadScene(1024, 683);
-  if (img.empty()) return state.SkipWithError("../shared is absent");
-  cv::Mat noise(img.size(), CV_16SC3), wide;
-  cv::RNG rng(7);
-  rng.fill(noise, cv::RNG::NORMAL, 0.0, 6.0);
-  img.convertTo(wide, CV_16SC3);
-  wide += noise;
-  wide.convertTo(img, CV_8UC3);
-  for (auto _ : state) benchmark::DoNotOptimize(QuietNoise(img));
-}
-BENCHMARK(BM_QuietNoise)->Unit(benchmark::kMillisecond);
-
 }  // namespace
 }  // namespace horizonreg
 

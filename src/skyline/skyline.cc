@@ -33,7 +33,7 @@ constexpr float kEdgeNoise = 4.0f;        // delta E of a step that is still noi
 constexpr float kEdgeCap = 12.0f;         // delta E above which a step counts as fully an edge
 constexpr float kSnowEdgeBoost = 4.0f;    // extra weight of a sharp step into white (snow) left above the boundary
 constexpr float kDeepBlueB = -25.0f;      // b* below which a pixel is saturated blue: sky, never terrain ...
-constexpr float kNormalCastB = -5.0f;     // ... lowered by the image's blue cast beyond this (median b* of its bottom third)
+constexpr float kNormalCastB = -15.0f;    // ... lowered by the image's blue cast beyond this (median b* of its bottom third)
 constexpr int kPersistentRows = 4;            // rows averaged on each side of a persistent step
 constexpr float kTopmostMinStep = 1.0f;       // delta E: a persistent step is clear from this ...
 constexpr float kTopmostNoiseFactor = 5.0f;   // ... or from this many times the sky's noise
@@ -50,11 +50,6 @@ constexpr double kGridShortRunColumns = 16.0;  // ... and, once there is one, of
 constexpr double kGridRowSlack = 0.75;        // rows: how near a grid row a boundary on it lies
 constexpr double kIsolatedRunColumns = 16.0;  // per 1024 columns (at least 8): a stretch at most this long ...
 constexpr double kIsolatedGapColumns = 8.0;   // ... between at least this many nulls each side (at least 5) is noise
-// Pixel noise (QuietNoise): smoothed above this sigma (grey levels) ...
-constexpr double kQuietNoiseSigma = 2.0;
-constexpr int kQuietFilterPx = 9;              // ... by a bilateral filter this wide ...
-constexpr double kQuietSpaceSigmaPx = 5.0;     // ... with this space sigma ...
-constexpr double kQuietColourSigmas = 4.2;     // ... and this colour sigma, in noise sigmas
 constexpr double kExposureTarget = 0.42;  // linear light of the bright end (99.5th percentile of luma) ...
 constexpr double kMaxExposureGain = 8.0;  // ... a photo under half of it is brightened to, by at most this (3 stops)
 constexpr double kFogReferenceLightness = 100.0;  // L* + 16 of a sky (L* 84) at which fog_contrast applies as it is
@@ -671,17 +666,8 @@ bool Monochrome(const LabPlanes& lab, std::vector<float>& chroma) {
 // ground too (its median b* in the bottom third, usually terrain, is then
 // -15 to -30, against -8 to +25 otherwise: glacier ice is bluish), and a
 // far ridge can be bluer than the sky over it. The threshold moves down by
-// the cast beyond -5: far mountains in haze and shade are 15-17 units bluer
-// than the ground (AK10_20090803: -17 to -19 over a ground of -2, under a
-// sky of -2 to -7), and a cooler white balance (blue x1.3, red x0.75 in
-// linear light) took them to -26 to -29 over a ground of -11; with the
-// threshold moving only beyond -15 they read as sky and the skyline
-// fell to the glacier 150 rows below. Measured with -5 against -15: the
-// real photos' cool copies 62.6% -> 74.3% of the traced columns within
-// 2 px (registered 7 -> 9 of 13), their other changed copies and the
-// photos as taken unchanged or better, the rendered scenes unchanged; -2
-// cost CG05_20050827 a sixth of its columns. The median is read from every
-// 4th pixel across and down (a video frame pays for it every time).
+// the cast beyond the usual. The median is read from every 4th pixel across
+// and down (a video frame pays for it every time).
 float DeepBlueB(const LabPlanes& lab, std::vector<float>& bs) {
   constexpr int kStride = 4;
   const int w = lab.Rows(), h = lab.Cols();
@@ -820,52 +806,6 @@ cv::Mat BlockMeans(const cv::Mat& bgr, int k) {
   return out;
 }
 
-double GreyNoiseSigma(const cv::Mat& bgr) {
-  if (bgr.type() != CV_8UC3) throw InvalidArgument("GreyNoiseSigma: an 8-bit BGR image");
-  const int w = bgr.cols, h = bgr.rows;
-  if (w < 3 || h < 3) return 0.0;
-  // Luma in 1/256 grey levels (BT.601 weights, as cv::cvtColor's), three rows at a time.
-  std::vector<int> rows[3];
-  auto luma = [&](int r, std::vector<int>& out) {
-    out.resize(w);
-    const uint8_t* p = bgr.ptr<uint8_t>(r);
-    for (int x = 0; x < w; ++x) out[x] = 29 * p[3 * x] + 150 * p[3 * x + 1] + 77 * p[3 * x + 2];
-  };
-  // |response| in 1/16 grey levels, the last bin holding everything from
-  // 256 levels on (only the lower quartile is read).
-  std::vector<int64_t> hist(4097, 0);
-  int64_t n = 0;
-  for (int r = 1; r + 1 < h; r += 4) {
-    luma(r - 1, rows[0]), luma(r, rows[1]), luma(r + 1, rows[2]);
-    const int *a = rows[0].data(), *b = rows[1].data(), *c = rows[2].data();
-    for (int x = 1; x + 1 < w; ++x) {
-      const int v = (a[x - 1] - 2 * a[x] + a[x + 1]) - 2 * (b[x - 1] - 2 * b[x] + b[x + 1]) +
-                    (c[x - 1] - 2 * c[x] + c[x + 1]);
-      ++hist[std::min(4096, std::abs(v) >> 4)];
-      ++n;
-    }
-  }
-  if (n == 0) return 0.0;
-  // The lower quartile, not the median: edges and texture (a glacier's
-  // crevasses filling the frame) raise the upper part of the distribution,
-  // noise all of it. For white noise of sigma s the response is normal with
-  // sigma 6 s, and a quarter of its absolute values lie under 0.3186 * 6 s.
-  // The quartile's bin, its count spread evenly over the bin's width.
-  int64_t below = 0;
-  size_t i = 0;
-  while (i + 1 < hist.size() && 4 * (below + hist[i]) < n) below += hist[i++];
-  const double within = hist[i] > 0 ? (0.25 * n - below) / hist[i] : 0.0;
-  return (i + within) / 16.0 / (0.3186 * 6.0);
-}
-
-cv::Mat QuietNoise(const cv::Mat& bgr) {
-  const double sigma = GreyNoiseSigma(bgr);
-  if (!(sigma > kQuietNoiseSigma)) return bgr;
-  cv::Mat out;
-  cv::bilateralFilter(bgr, out, kQuietFilterPx, kQuietColourSigmas * sigma, kQuietSpaceSigmaPx);
-  return out;
-}
-
 void SkylineOptions::Check() const {
   if (roll_hint_deg && !(std::abs(*roll_hint_deg) <= 45.0)) ThrowField("SkylineOptions::roll_hint_deg", *roll_hint_deg, "|roll| <= 45");
   if (max_work_width_px < 64) ThrowField("SkylineOptions::max_work_width_px", max_work_width_px, ">= 64");
@@ -899,10 +839,10 @@ Skyline ExtractSceneSkyline(const cv::Mat& image, const SkylineOptions& options,
   out.confidence.assign(image.cols, 0.0);
   if (image.rows < 8 || image.cols < 8) return out;
 
-  const cv::Mat input = ToBgr(image);
-  if (const int k = ExtractionReduction(input.cols, input.rows); k >= 2) {
+  const cv::Mat bgr = ToBgr(image);
+  if (const int k = ExtractionReduction(bgr.cols, bgr.rows); k >= 2) {
     Skyline up =
-        MappedUp(ExtractSceneSkyline(BlockMeans(input, k), options, exposure, sky_floor), k, image.cols, image.rows);
+        MappedUp(ExtractSceneSkyline(BlockMeans(bgr, k), options, exposure, sky_floor), k, image.cols, image.rows);
     // At full size to within a fraction of a pixel: the edge each column
     // was read at, and its raise to a fainter ridge above where that raise
     // is within a reduced row (a row the edge half fills departs from the
@@ -910,15 +850,11 @@ Skyline ExtractSceneSkyline(const cv::Mat& image, const SkylineOptions& options,
     // a raise further up keeps its mapped row.
     for (int x = 0; x < up.width; ++x) {
       const double alt = up.Alt(x);
-      if (!std::isfinite(alt) || std::abs(alt - up.y[x]) <= k) up.y[x] = PolishedRow(input, k, x, up.y[x]);
-      if (std::isfinite(alt)) up.y_alt[x] = PolishedRow(input, k, x, alt);
+      if (!std::isfinite(alt) || std::abs(alt - up.y[x]) <= k) up.y[x] = PolishedRow(bgr, k, x, up.y[x]);
+      if (std::isfinite(alt)) up.y_alt[x] = PolishedRow(bgr, k, x, alt);
     }
     return up;
   }
-  // Pixel noise (a webcam at dusk, a high ISO) smoothed where it is clearly
-  // more than a photo's own (QuietNoise); a larger photo's block means above
-  // have averaged most of it away.
-  const cv::Mat bgr = QuietNoise(input);
 
   // Search at a bounded width.
   const double scale = std::min(1.0, static_cast<double>(options.max_work_width_px) / image.cols);

@@ -97,20 +97,6 @@ int ExtractionReduction(int cols, int rows);
 // k i .. k i + k - 1). k in [2, 257]; throws InvalidArgument otherwise.
 cv::Mat BlockMeans(const cv::Mat& bgr, int k);
 
-// The standard deviation of an 8-bit BGR image's white pixel noise, in grey
-// levels (luma, 0-255): from the lower quartile of the absolute response of
-// the 3 x 3 mask [1 -2 1; -2 4 -2; 1 -2 1], which cancels any plane
-// (Immerkaer 1996, with a quantile instead of the mean so that edges and
-// texture count little), over every 4th row. 0 for an image under 3 x 3.
-double GreyNoiseSigma(const cv::Mat& bgr);
-
-// `bgr` itself when its noise (GreyNoiseSigma) is at most 2 grey levels
-// (the real photos 0-0.8, the rendered scenes 0-1), else smoothed by a
-// bilateral filter (9 px across, space sigma 5 px, colour sigma 4.2 times
-// the noise): edges well over the noise stay, the noise shrinks, so a faint
-// ridge stands out of the sky's grain again.
-cv::Mat QuietNoise(const cv::Mat& bgr);
-
 // The skyline read again where a registered pose predicts it: `predicted`
 // is the DEM horizon projected at that pose (per column, NaN where none),
 // which a coarse DEM flattens, so that the true skyline lies up to
