@@ -94,6 +94,10 @@ Modes (each a per-photo table and a summary):
             not turned, its height whole; --floors crop-narrow=N)
   wrong-crop, wrong-crop-narrow  (not in the default set) the wrong probes
             on those crops
+  ring-crop, ring-crop-narrow  (not in the default set; about 2 minutes)
+            the ring of wrong positions (ring's 468 probes) on those crops:
+            a crop's camera centre is searched at three columns, three
+            chances for a wrong position's pose; fails with any false one
   reencode  (not in the default set) plain on each photo decoded and saved
             again as JPEG at quality 95 with its EXIF segment kept: the
             pixels change by ~0.2 grey levels on average (an upload, an
@@ -923,7 +927,7 @@ def main():
     # the rest; the centre half (a portrait frame from a landscape photo).
     for mode, share, what in (("crop", 0.75, "cropped to 3/4 of the width"),
                               ("crop-narrow", 0.5, "cropped to the centre half of the width (portrait)")):
-        if mode not in modes and "wrong-" + mode not in modes:
+        if mode not in modes and "wrong-" + mode not in modes and "ring-" + mode not in modes:
             continue
         cv2 = opencv_for(mode)
         crops = {}
@@ -948,6 +952,31 @@ def main():
             out = probe_rows(binary, shared, probes, [probe_call(pr, image=crops[pr[0][0]][0], truth=crops[pr[0][0]][1])
                                                       for pr in probes], jobs, tmpdir)
             if not report_wrong(f"wrong position (2-10 km away) or another region's DEM, {what}", out) and check:
+                failed = True
+        if "ring-" + mode in modes:
+            probes = [(p, b, dist) + offset_position(p[1]["lat"], p[1]["lon"], b, dist)
+                      for p in photos for b, dist in RING_OFFSETS]
+            out = register_many(binary, shared, [
+                dict(photo_dir=d, name=name, truth=crops[name][1], extra=[], lat=lat, lon=lon, image=crops[name][0])
+                for (name, t, d), b, dist, lat, lon in probes], jobs, tmpdir)
+            n_reg, false, errs = 0, [], []
+            for ((name, _, _), b, dist, _, _), r in zip(probes, out):
+                if r.get("status") == "error":
+                    errs.append(f"{name} {b}/{dist // 1000}: {r.get('message')}")
+                if r.get("status") != "registered":
+                    continue
+                n_reg += 1
+                e = errors(r, crops[name][1])
+                err = max(abs(e["daz"]), abs(e["dp"])) if e else float("inf")
+                if err > 1.0:
+                    false.append(f"{name} {b}/{dist // 1000}: {err:.1f}")
+            print(f"\n== a ring of wrong positions (12 bearings at 2, 3 and 5 km), {what} ==")
+            for f in false + errs:
+                print("  " + f)
+            print(f"ring probes: {len(probes)}; registered: {n_reg} (none should); false (> 1 deg): {len(false)}; "
+                  f"errors: {len(errs)}")
+            if check and (false or errs):
+                print(f"FAIL: --modes ring-{mode} has false registrations or errors")
                 failed = True
     if "traced" in modes:
         def traced(p):

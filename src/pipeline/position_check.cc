@@ -44,6 +44,8 @@ double PositionCheck::BearingDeg() const {
   return WrapAzimuthDeg(RadToDeg(std::atan2(best_offset_en_m.x(), best_offset_en_m.y())));
 }
 
+double PositionCheck::AzimuthShiftDeg() const { return AngDiffDeg(best_pose.azimuth_deg, given_pose.azimuth_deg); }
+
 namespace {
 
 // A move must lower the cost by this share to be taken (not rounding noise).
@@ -149,6 +151,7 @@ PositionCheck CheckPositionConsistency(const Site& site, const HorizonProfile& h
   struct Place {
     Eigen::Vector2d en{0.0, 0.0};
     double cost = INFINITY;
+    CameraPose pose{};  // the best pose there
   };
   // The DEM the places' horizons sweep (the wide look's indexed copy).
   const TerrainWindow* sweep_window = &site.window();
@@ -179,6 +182,7 @@ PositionCheck CheckPositionConsistency(const Site& site, const HorizonProfile& h
     const Registration r = Register(skyline, *h, ro);
     if (r.candidates.empty()) return;
     p.cost = r.candidates[0].cost;
+    p.pose = r.candidates[0].pose;
   };
   // Every place fitted so far: the pattern's rings come back to places
   // already fitted (the centre it left, the first rings' places), which
@@ -208,7 +212,7 @@ PositionCheck CheckPositionConsistency(const Site& site, const HorizonProfile& h
     for (int k = 0; k < co.directions; ++k) {
       const double a = 2.0 * kPi * k / co.directions;
       const Eigen::Vector2d en = from + radius * Eigen::Vector2d(std::sin(a), std::cos(a));
-      if (en.norm() <= co.max_offset_m) places.push_back({en});
+      if (en.norm() <= co.max_offset_m) places.push_back({en, INFINITY, CameraPose{}});
     }
   };
 
@@ -287,7 +291,7 @@ PositionCheck CheckPositionConsistency(const Site& site, const HorizonProfile& h
       for (int c = -rows - 1; c <= rows + 1; ++c) {
         const Eigen::Vector2d en((c + 0.5 * (r & 1)) * s, r * row);
         if (en.norm() > co.first_step_m + 0.5 * s && en.norm() <= wide_radius && en.norm() <= co.max_offset_m)
-          places.push_back({en});
+          places.push_back({en, INFINITY, CameraPose{}});
       }
     // Nearest first, a few places at a time, until one passes the limit:
     // refused then whatever the rest would show (the pattern only goes
@@ -310,6 +314,8 @@ PositionCheck CheckPositionConsistency(const Site& site, const HorizonProfile& h
   }
   out.cost_ratio = center.cost / given.cost;
   out.best_offset_en_m = center.en;
+  out.given_pose = given.pose;
+  out.best_pose = center.pose;
   if (refused()) {
     out.consistent = false;
     out.only_ridges_limit = !(center.cost < co.max_cost_ratio * given.cost);

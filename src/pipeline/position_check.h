@@ -87,12 +87,23 @@ struct PositionCheck {
   int wide_places = 0;                            // places of the wide look's grid fitted (0: not needed)
   double ms = 0.0;
   std::string message;  // why it was refused, else empty
+  // The orientation each place's search fits (the optical axis, at the
+  // place's own best focal length): at the given position and at the best
+  // place. Their difference is how far the orientation rests on the
+  // position: from 2-3 km beside the real photos' stations a place that
+  // fits 2-9% better (a cost ratio of 0.91-0.98, under the limit) can carry
+  // a pose 1-2.4 deg away, and the skyline cannot tell which place is right.
+  CameraPose given_pose, best_pose;
   // Refused only under the stricter limit of a registration the inner
   // ridges decided (PositionCheckOptions::ridges_decided): no place fits
   // better than max_cost_ratio, so the pose is doubted, not the position.
   bool only_ridges_limit = false;
   double OffsetM() const { return best_offset_en_m.norm(); }
   double BearingDeg() const;  // of the best place from the given one, clockwise from north
+  // best_pose - given_pose in azimuth (wrapped to +-180) and pitch, degrees;
+  // 0 when the best place is the given position.
+  double AzimuthShiftDeg() const;
+  double PitchShiftDeg() const { return best_pose.pitch_deg - given_pose.pitch_deg; }
 };
 
 // Checks `reg` (registered at `horizon`, seen from `horizon.observer`) for

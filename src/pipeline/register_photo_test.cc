@@ -256,6 +256,9 @@ TEST(PositionCheck, PassesTheTruePositionAndRefusesOneTwoKilometresOff) {
   EXPECT_EQ(r.position_check->horizons, 9);
   EXPECT_EQ(r.position_check->wide_places, 0);
   EXPECT_EQ(RegistrationReport(site, r, "arguments", 1.0)["position_check"]["consistent"], true);
+  // The best place is the given one: the orientation does not move.
+  EXPECT_EQ(r.position_check->AzimuthShiftDeg(), 0.0);
+  EXPECT_EQ(RegistrationReport(site, r, "arguments", 1.0)["position_check"]["best_azimuth_shift_deg"], 0.0);
   // Trusted: no check.
   po.check_position.reset();
   EXPECT_FALSE(RegisterPhoto(site, photo, po, &pool).position_check.has_value());
@@ -273,6 +276,15 @@ TEST(PositionCheck, PassesTheTruePositionAndRefusesOneTwoKilometresOff) {
   EXPECT_GE(c.horizons, 17);  // the cost falls on the first ring: the far ring too
   EXPECT_NEAR(AngDiffDeg(c.BearingDeg(), 270.0), 0.0, 50.0);
   EXPECT_NE(c.message.find("position"), std::string::npos);
+  // The orientation at each place: at the given one, the wrong position's
+  // own (moved off the truth's by the 2 km of parallax); at the best place,
+  // which lies towards the truth, nearer the truth's.
+  const double truth_az = r.registration.pose.azimuth_deg;
+  EXPECT_GT(std::abs(AngDiffDeg(c.given_pose.azimuth_deg, truth_az)), 3.0);
+  EXPECT_LT(std::abs(AngDiffDeg(c.best_pose.azimuth_deg, truth_az)),
+            std::abs(AngDiffDeg(c.given_pose.azimuth_deg, truth_az)) - 1.0);
+  EXPECT_GT(c.AzimuthShiftDeg() * AngDiffDeg(truth_az, c.given_pose.azimuth_deg), 0.0);
+  EXPECT_NEAR(c.PitchShiftDeg(), 0.0, 0.5);  // the cones' tops stand level around the truth
   // Without a pool: the same answer.
   const PositionCheck serial = CheckPositionConsistency(wrong, wrong.horizon(), r.skyline, r.registration, options,
                                                         PositionCheckOptions{}, nullptr);

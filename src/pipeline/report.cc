@@ -179,6 +179,8 @@ nlohmann::json RegistrationReport(const Site& site, const PhotoRegistration& pho
                            {"cost_ratio", Rounded(c.cost_ratio, 3)},
                            {"best_offset_m", Rounded(c.OffsetM(), 0)},
                            {"best_bearing_deg", c.OffsetM() > 0.0 ? Rounded(c.BearingDeg(), 1) : nullptr},
+                           {"best_azimuth_shift_deg", Rounded(c.AzimuthShiftDeg(), 2)},
+                           {"best_pitch_shift_deg", Rounded(c.PitchShiftDeg(), 2)},
                            {"horizons", c.horizons},
                            {"wide_places", c.wide_places},
                            {"ridges_limit", c.only_ridges_limit}};
