@@ -90,9 +90,10 @@ struct PositionCheck {
   // The orientation each place's search fits (the optical axis, at the
   // place's own best focal length): at the given position and at the best
   // place. Their difference is how far the orientation rests on the
-  // position: from 2-3 km beside the real photos' stations a place that
-  // fits 2-9% better (a cost ratio of 0.91-0.98, under the limit) can carry
-  // a pose 1-2.4 deg away, and the skyline cannot tell which place is right.
+  // position: at the real photos' true stations (their crops most) a place
+  // 1-3 km away that fits 2-9% better (a cost ratio of 0.91-0.98, within
+  // the limit) can carry a pose 0.2-2.4 deg away, and the skyline cannot
+  // tell which place is right.
   CameraPose given_pose, best_pose;
   // Refused only under the stricter limit of a registration the inner
   // ridges decided (PositionCheckOptions::ridges_decided): no place fits
