@@ -540,6 +540,19 @@ def errors(r, t):
             "dr": r["roll_deg"] - t["roll_deg"], "dh": 100.0 * (r["hfov_deg"] / t["hfov_deg"] - 1.0)}
 
 
+FALSE_DEG = 1.0  # a registration farther off than this (the centre ray's azimuth or pitch) is false
+
+
+def pose_off_deg(e):
+    """The larger of the centre ray's azimuth and pitch errors (errors()); infinity when not registered."""
+    return max(abs(e["daz"]), abs(e["dp"])) if e else float("inf")
+
+
+def is_false(e):
+    """Whether a registration (errors(); None: not registered) is false."""
+    return e is not None and pose_off_deg(e) > FALSE_DEG
+
+
 def fmt(v, f):
     return format(v, f) if v is not None and not (isinstance(v, float) and math.isnan(v)) else "-"
 
@@ -557,7 +570,7 @@ def pose_table(title, rows, tol):
             c0 = r["candidates"][0]
             if (r.get("camera") or {}).get("source") != "file":  # centred camera: the axis is the centre ray
                 note = f"[best {angdiff(c0['azimuth_deg'], t['yaw_deg']):+.2f}/{c0['pitch_deg'] - t['pitch_deg']:+.2f}] " + note
-        if e and max(abs(e["daz"]), abs(e["dp"])) > 1.0:
+        if is_false(e):
             note = "FALSE REGISTRATION " + note
         dem = r.get("dem") or {}
         print(f"{name:<24}{r.get('status', '?'):<11}{fmt(e and e['daz'], '8.3f'):>8}{fmt(e and e['dp'], '8.3f'):>8}"
@@ -567,7 +580,7 @@ def pose_table(title, rows, tol):
               f"{fmt((r.get('timing_ms') or {}).get('total'), '6.0f'):>6}  {note}")
     errs = [errors(r, t) for _, t, r in rows]
     good = [e for e in errs if e and abs(e["daz"]) <= tol and abs(e["dp"]) <= tol]
-    false = [n for (n, _, _), e in zip(rows, errs) if e and max(abs(e["daz"]), abs(e["dp"])) > 1.0]
+    false = [n for (n, _, _), e in zip(rows, errs) if is_false(e)]
     reg = [e for e in errs if e]
     med = lambda k: statistics.median(abs(e[k]) for e in reg) if reg else float("nan")
     print(f"registered within {tol} deg (azimuth and pitch of the centre ray): {len(good)}/{len(rows)}; "
@@ -740,10 +753,9 @@ def photometric_modes(binary, shared, photos, modes, tmpdir, pool, jobs, floors,
             good, false, traced, given, within, missed = 0, [], 0, 0, 0, []
             for (name, t, _), r, s in pool.map(run, photos):
                 e = errors(r, t)
-                off = max(abs(e["daz"]), abs(e["dp"])) if e else None
-                if off is not None and off <= 0.5:
+                if e and pose_off_deg(e) <= 0.5:
                     good += 1
-                elif off is not None and off > 1.0:
+                elif is_false(e):
                     false.append(name)
                 else:
                     missed.append(name)
@@ -968,8 +980,8 @@ def main():
                     continue
                 n_reg += 1
                 e = errors(r, crops[name][1])
-                err = max(abs(e["daz"]), abs(e["dp"])) if e else float("inf")
-                if err > 1.0:
+                err = pose_off_deg(e)
+                if err > FALSE_DEG:
                     false.append(f"{name} {b}/{dist // 1000}: {err:.1f}")
             print(f"\n== a ring of wrong positions (12 bearings at 2, 3 and 5 km), {what} ==")
             for f in false + errs:
@@ -1105,8 +1117,8 @@ def main():
                     continue
                 reg += 1
                 e = errors(r, t)
-                err = max(abs(e["daz"]), abs(e["dp"])) if e else float("inf")
-                if err > 1.0:
+                err = pose_off_deg(e)
+                if err > FALSE_DEG:
                     false.append(f"{b}/{dist // 1000}: {err:.1f}, {r.get('ambiguity_ratio')}")
             n_reg += reg
             n_false += len(false)
@@ -1141,9 +1153,9 @@ def main():
                 if label == "truth":
                     total += 1
                     ratios.append(r.get("ambiguity_ratio"))
-                    if e and max(abs(e["daz"]), abs(e["dp"])) <= 0.5:
+                    if e and pose_off_deg(e) <= 0.5:
                         ok += 1
-                    elif e and max(abs(e["daz"]), abs(e["dp"])) > 1.0:
+                    elif is_false(e):
                         false_runs.append((name, "its own position", " ".join(pe)))
                 else:
                     if r.get("status") == "registered":
@@ -1228,7 +1240,7 @@ def stations_modes(binary, shared, photos, modes, tmpdir, pool, floors, check):
                 a, b = every_rows.get(image, {}), vouched_rows.get(image, {})
                 ea, eb = errors(a, t), errors(b, t)
                 for r, e in ((a, ea), (b, eb)):
-                    if e and max(abs(e["daz"]), abs(e["dp"])) > 1.0:
+                    if is_false(e):
                         false += 1
                 good += bool(eb and abs(eb["daz"]) <= 0.5 and abs(eb["dp"]) <= 0.5)
                 same = a.get("status") == b.get("status") and (not ea or (abs(ea["daz"] - eb["daz"]) < 1e-9 and
@@ -1280,7 +1292,7 @@ def stations_modes(binary, shared, photos, modes, tmpdir, pool, floors, check):
                 rows += 1
                 light += vouched(r)
                 e = errors(r, t)
-                if e and max(abs(e["daz"]), abs(e["dp"])) > 1.0:
+                if is_false(e):
                     bad.append((name, label, e, vouched(r)))
                 elif e:
                     near.append((name, label, e, vouched(r)))
