@@ -579,7 +579,7 @@ def pose_table(title, rows, tol):
               f"{t['camera']['k'][0]:>7.3f}{fmt(dem.get('skyline_above_dem_px'), '7.2f'):>7}"
               f"{fmt((r.get('timing_ms') or {}).get('total'), '6.0f'):>6}  {note}")
     errs = [errors(r, t) for _, t, r in rows]
-    good = [e for e in errs if e and abs(e["daz"]) <= tol and abs(e["dp"]) <= tol]
+    good = [e for e in errs if pose_off_deg(e) <= tol]
     false = [n for (n, _, _), e in zip(rows, errs) if is_false(e)]
     reg = [e for e in errs if e]
     med = lambda k: statistics.median(abs(e[k]) for e in reg) if reg else float("nan")
@@ -753,7 +753,7 @@ def photometric_modes(binary, shared, photos, modes, tmpdir, pool, jobs, floors,
             good, false, traced, given, within, missed = 0, [], 0, 0, 0, []
             for (name, t, _), r, s in pool.map(run, photos):
                 e = errors(r, t)
-                if e and pose_off_deg(e) <= 0.5:
+                if pose_off_deg(e) <= 0.5:
                     good += 1
                 elif is_false(e):
                     false.append(name)
@@ -869,8 +869,7 @@ def main():
                  "--sensors: a compass and inclinometer 2 deg off (azimuth or pitch)")
         good, false, _, _ = pose_table(title, rows, 0.5)
         converged_photos = len({n.split()[0] for n, t, r in rows
-                                if all(errors(rr, tt) and abs(errors(rr, tt)["daz"]) <= 0.5 and
-                                       abs(errors(rr, tt)["dp"]) <= 0.5
+                                if all(pose_off_deg(errors(rr, tt)) <= 0.5
                                        for nn, tt, rr in rows if nn.split()[0] == n.split()[0])})
         print(f"photos converging from all four starts: {converged_photos}/{len(photos)}")
         if check and (converged_photos < floors[mode] or false):
@@ -1153,7 +1152,7 @@ def main():
                 if label == "truth":
                     total += 1
                     ratios.append(r.get("ambiguity_ratio"))
-                    if e and pose_off_deg(e) <= 0.5:
+                    if pose_off_deg(e) <= 0.5:
                         ok += 1
                     elif is_false(e):
                         false_runs.append((name, "its own position", " ".join(pe)))
@@ -1242,7 +1241,7 @@ def stations_modes(binary, shared, photos, modes, tmpdir, pool, floors, check):
                 for r, e in ((a, ea), (b, eb)):
                     if is_false(e):
                         false += 1
-                good += bool(eb and abs(eb["daz"]) <= 0.5 and abs(eb["dp"]) <= 0.5)
+                good += pose_off_deg(eb) <= 0.5
                 same = a.get("status") == b.get("status") and (not ea or (abs(ea["daz"] - eb["daz"]) < 1e-9 and
                                                                            abs(ea["dp"] - eb["dp"]) < 1e-9))
                 # registered only within the station camera's opening angle
