@@ -19,6 +19,11 @@ Modes (each a per-photo table and a summary):
   thin      the same on each photo cropped from the top to leave only 10 px of
             sky above the traced horizon's highest point (a camera pitched
             down, a thin strip of sky: common at time-lapse stations)
+  thin-framed  (not in the default set; seconds) the same with as many rows
+            cut from the bottom as from the top (the frame's foreground of
+            rock gone: snow and ice to the bottom edge, as from a station on
+            a glacier or a summit; --floors thin-framed=W,thin-framed-given=G,
+            default 0)
   wrong     register from positions 2-10 km away and against another region's
             DEM: every one must answer no_match (a registration there is false)
   wrong-camera  the same probes with --camera from the truth (a known lens
@@ -607,11 +612,11 @@ def signed_errors(traced, s, top=0):
     return [s["y"][x] + top - y for x, y in traced if s["y"][x] is not None]
 
 
-def skyline_table(binary, photos, thin_sky_px=None, shared=None, grey=False, jpeg_quality=None):
+def skyline_table(binary, photos, thin_sky_px=None, shared=None, grey=False, jpeg_quality=None, framed=False):
     """Per photo and in all: the traced columns given a value and within 2 px.
     With thin_sky_px, each photo is first cropped from the top to leave that
     many rows above the traced horizon's highest point (the trace shifted
-    with it). With shared (the registered mode), the skyline is the one
+    with it); with framed as well, as many rows cut from the bottom. With shared (the registered mode), the skyline is the one
     `register --skyline-out` writes, the photo registered with no prior:
     read again near the DEM horizon where registered. With grey, the skyline
     of each photo's grey copy (luma, JPEG quality 95). With jpeg_quality, of
@@ -627,10 +632,11 @@ def skyline_table(binary, photos, thin_sky_px=None, shared=None, grey=False, jpe
     elif thin_sky_px is None:
         print("\n== skyline against the hand-traced horizon (traced columns only) ==")
     else:
-        cv2 = opencv_for("thin")
+        cv2 = opencv_for("thin-framed" if framed else "thin")
         if cv2 is None:
             return float("nan"), float("nan")
-        print(f"\n== skyline with {thin_sky_px} px of sky left above the traced horizon (photos cropped) ==")
+        print(f"\n== skyline with {thin_sky_px} px of sky left above the traced horizon (photos cropped"
+              + (", as many rows cut from the bottom) ==" if framed else ") =="))
     # below / above: traced columns given a value more than 2 px under / over
     # the trace (under: a clearer inner edge taken; over: mostly a faint far
     # ridge the tracer left out, or cloud).
@@ -647,7 +653,7 @@ def skyline_table(binary, photos, thin_sky_px=None, shared=None, grey=False, jpe
                 top = max(0, int(min(y for _, y in traced)) - thin_sky_px)
                 full = cv2.imread(image)
                 image = os.path.join(tmp, "crop.png")
-                cv2.imwrite(image, full[top:])
+                cv2.imwrite(image, full[top:full.shape[0] - top] if framed else full[top:])
             if grey:
                 luma = cv2.imread(image, cv2.IMREAD_GRAYSCALE)
                 image = os.path.join(tmp, "grey.jpg")
@@ -799,7 +805,8 @@ def main():
               "registered-skyline": 0.9, "registered-skyline-given": 0.95,
               "thin-given": 0.95, "ring": 0, "ring-camera": 0, "ring-initial": 0, "ring-sensors": 0, "ring-noexif": 0, "ring-hfov": 0, "ring-range": 0, "ring-noalt": 0, "ring-noalt-hfov": 0, "hfov": 12,
               "sensors": 0, "noexif": 0, "reencode": 0, "gray": 0, "upscale2": 0, "upscale4": 0, "jpeg50": 0, "jpeg30": 0, "crop": 0, "crop-narrow": 0, "ring-crop": 0, "ring-crop-narrow": 0, "stations": 0, "turned": 0, "banner": 0, "gray-skyline": 0.0,
-              "jpeg30-skyline": 0.0, "photometric": 0, "photometric-skyline": 0.0}
+              "jpeg30-skyline": 0.0, "photometric": 0, "photometric-skyline": 0.0, "thin-framed": 0.0,
+              "thin-framed-given": 0.0}
     for kv in (opt("--floors") or "").split(","):
         if "=" in kv:
             k, v = kv.split("=")
@@ -1035,6 +1042,11 @@ def main():
         w, g = skyline_table(binary, photos, THIN_SKY_PX)
         if check and not (w >= floors["thin"] and g >= floors["thin-given"]):  # NaN (no OpenCV) fails too
             print("FAIL: skyline accuracy or coverage under a thin strip of sky misses its floor")
+            failed = True
+    if "thin-framed" in modes:
+        w, g = skyline_table(binary, photos, THIN_SKY_PX, framed=True)
+        if check and not (w >= floors["thin-framed"] and g >= floors["thin-framed-given"]):
+            print("FAIL: skyline accuracy or coverage under a thin strip of sky, no foreground, misses its floor")
             failed = True
     if "batch-equals" in modes:
         probes = false_probe_list(photos, shared)
