@@ -487,7 +487,7 @@ HR_VECTOR_CLONES void PersistentSteps(const LabPlanes& lab, int k, float deep_bl
 // traced columns within 2 px instead of 80.6%, but registered
 // AK01b_20100602 from 2 km beside its station 2.6 deg off (a ring probe:
 // the position check's best place at a cost ratio of 0.903, the limit
-// 0.90). One scan for all three.
+// 0.90). Two scans (the second needs the first's top noise).
 struct TopNoise {
   float top = 0.1f, sky = 0.1f;  // delta E
 };
