@@ -616,7 +616,8 @@ def skyline_table(binary, photos, thin_sky_px=None, shared=None, grey=False, jpe
     """Per photo and in all: the traced columns given a value and within 2 px.
     With thin_sky_px, each photo is first cropped from the top to leave that
     many rows above the traced horizon's highest point (the trace shifted
-    with it); with framed as well, as many rows cut from the bottom. With shared (the registered mode), the skyline is the one
+    with it); with framed as well, as many rows cut from the bottom. With
+    shared (the registered mode), the skyline is the one
     `register --skyline-out` writes, the photo registered with no prior:
     read again near the DEM horizon where registered. With grey, the skyline
     of each photo's grey copy (luma, JPEG quality 95). With jpeg_quality, of
@@ -1038,16 +1039,12 @@ def main():
         if check and (w < floors["skyline"] or g < floors["skyline-given"]):
             print("FAIL: skyline accuracy or coverage misses its floor")
             failed = True
-    if "thin" in modes:
-        w, g = skyline_table(binary, photos, THIN_SKY_PX)
-        if check and not (w >= floors["thin"] and g >= floors["thin-given"]):  # NaN (no OpenCV) fails too
-            print("FAIL: skyline accuracy or coverage under a thin strip of sky misses its floor")
-            failed = True
-    if "thin-framed" in modes:
-        w, g = skyline_table(binary, photos, THIN_SKY_PX, framed=True)
-        if check and not (w >= floors["thin-framed"] and g >= floors["thin-framed-given"]):
-            print("FAIL: skyline accuracy or coverage under a thin strip of sky, no foreground, misses its floor")
-            failed = True
+    for mode, framed, what in (("thin", False, ""), ("thin-framed", True, ", no foreground,")):
+        if mode in modes:
+            w, g = skyline_table(binary, photos, THIN_SKY_PX, framed=framed)
+            if check and not (w >= floors[mode] and g >= floors[mode + "-given"]):  # NaN (no OpenCV) fails too
+                print(f"FAIL: skyline accuracy or coverage under a thin strip of sky{what} misses its floor")
+                failed = True
     if "batch-equals" in modes:
         probes = false_probe_list(photos, shared)
         calls = [probe_call(pr) for pr in probes]

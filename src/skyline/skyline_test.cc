@@ -37,13 +37,14 @@ void AddNoise(cv::Mat& img, double sigma) {
   wide.convertTo(img, CV_8UC3);
 }
 
-// Columns whose boundary lies within a pixel of the scene's true row.
-int WithinAPixel(const Skyline& s, const std::vector<double>& truth) {
+// Columns whose boundary lies within `px` of the scene's true row.
+int WithinPx(const Skyline& s, const std::vector<double>& truth, double px) {
   int good = 0;
   for (int x = 0; x < s.width; ++x)
-    if (std::isfinite(s.y[x]) && std::abs(s.y[x] - std::ceil(truth[x] - 0.5)) <= 1.0) ++good;
+    if (std::isfinite(s.y[x]) && std::abs(s.y[x] - std::ceil(truth[x] - 0.5)) <= px) ++good;
   return good;
 }
+int WithinAPixel(const Skyline& s, const std::vector<double>& truth) { return WithinPx(s, truth, 1.0); }
 
 TEST(SkylineOptions, DefaultsAreValid) { EXPECT_NO_THROW(SkylineOptions{}.Check()); }
 
@@ -210,11 +211,7 @@ TEST(ExtractSkyline, ThinSkyStripOverTexturedSnowKeepsItsColumns) {
                                                    : cv::Vec3b(250 - t, 248 - t, 245 - t);
     }
   const Skyline s = ExtractSkyline(img, SkylineOptions{});
-  int good = 0, given = 0;
-  for (int x = 0; x < w; ++x) {
-    given += std::isfinite(s.y[x]);
-    good += std::isfinite(s.y[x]) && std::abs(s.y[x] - std::ceil(truth[x] - 0.5)) <= 2.0;
-  }
+  const int given = s.VisibleCount(), good = WithinPx(s, truth, 2.0);
   EXPECT_GE(given, 0.9 * w);
   EXPECT_GE(good, 0.85 * w);
 }
@@ -242,11 +239,7 @@ TEST(ExtractSkyline, ThinPaleSkyOverSnowToTheBottomKeepsItsColumns) {
                                                    : cv::Vec3b(242 - t, 240 - t, 238 - t);
     }
   const Skyline s = ExtractSkyline(img, SkylineOptions{});
-  int good = 0, given = 0;
-  for (int x = 0; x < w; ++x) {
-    given += std::isfinite(s.y[x]);
-    good += std::isfinite(s.y[x]) && std::abs(s.y[x] - std::ceil(truth[x] - 0.5)) <= 2.0;
-  }
+  const int given = s.VisibleCount(), good = WithinPx(s, truth, 2.0);
   std::printf("[ skyline ] thin pale sky over snow: %d given, %d within 2 px of %d\n", given, good, w);
   EXPECT_GE(given, 0.85 * w);
   EXPECT_GE(good, 0.8 * w);
