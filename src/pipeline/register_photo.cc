@@ -409,8 +409,10 @@ Registration RegisterImage(const cv::Mat& image, const Skyline& skyline, const H
                            const RegistrationOptions& options) {
   Registration r = Register(skyline, horizon, options);
   if (!r.registered)
-    if (auto again = RecheckWithGuidedSkyline(image, skyline, horizon, r, options); again && again->registered)
-      return *again;
+    if (auto again = RecheckWithGuidedSkyline(image, skyline, horizon, r, options)) {
+      if (again->registered) return *again;
+      r.message = again->message;  // the first look's answer and why the second did not change it
+    }
   return r;
 }
 
@@ -519,7 +521,7 @@ std::optional<Registration> RecheckWithGuidedSkyline(const cv::Mat& image, const
   std::ostringstream m;
   if (r.registered && moved(r.pose)) {
     r.registered = false;
-    m << "the re-read skyline moved the pose; " << first.message;
+    m << "the re-read skyline moved the pose";
   } else if (r.registered) {
     // The re-read skyline must register on its own, by the whole decision
     // (ambiguity and evidence included), at the same pose.
@@ -534,24 +536,29 @@ std::optional<Registration> RecheckWithGuidedSkyline(const cv::Mat& image, const
     const Registration search = Register(guided, horizon, free);
     if (!search.registered) {
       r.registered = false;
-      m << "the re-read skyline does not register on its own (" << search.message << "); " << first.message;
+      m << "the re-read skyline does not register on its own (" << search.message << ")";
     } else if (moved(search.pose)) {
       r.registered = false;
-      m << "the re-read skyline registers elsewhere; " << first.message;
+      m << "the re-read skyline registers elsewhere";
     } else if (const double rival = RivalAfterItsOwnReread(search, reread_at, horizon, free, w, h);
                rival < kMinRivalMisfitRatio) {
       // Re-reading near a pose's own projection helps any pose; the best
       // alternative given the same help must still fit clearly worse.
       r.registered = false;
       m << "ambiguous once the best alternative's skyline is re-read too (misfit ratio " << std::setprecision(3)
-        << rival << "); " << first.message;
+        << rival << ")";
     } else {
       r = search;
       m << "registered (" << reread << " columns re-read near the DEM horizon)";
     }
   } else {
-    m << r.message << " (after re-reading " << reread << " columns)";
+    m << r.message;
   }
+  // Refused: the first look's answer leads, then why the second did not
+  // change it.
+  if (!r.registered)
+    m.str(first.message + "; a second look, " + std::to_string(reread) + " columns re-read near the DEM horizon: " +
+          m.str());
   r.message = m.str();
   return r;
 }

@@ -165,7 +165,8 @@ bool WithinPose(const RegistrationOptions& constrained, const Registration& r);
 Registration ConfirmedWithoutPrior(Registration alone, const RegistrationOptions& constrained);
 
 // Register() of the image's skyline, then RecheckWithGuidedSkyline() when
-// it is a near miss.
+// it is a near miss. Refused by both, the first look's answer is returned,
+// its message saying why the second look did not change it.
 Registration RegisterImage(const cv::Mat& image, const Skyline& skyline, const HorizonProfile& horizon,
                            const RegistrationOptions& options);
 

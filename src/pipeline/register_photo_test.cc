@@ -488,7 +488,13 @@ TEST_F(GuidedSkylineTest, AUniformSkyOrAWrongPoseIsNotConfirmed) {
   Registration wrong = first;
   wrong.pose.azimuth_deg += 1.0;
   const auto moved = RecheckWithGuidedSkyline(image, skyline, horizon, wrong, RegistrationOptions{});
-  EXPECT_TRUE(!moved || !moved->registered);
+  ASSERT_TRUE(moved);
+  EXPECT_FALSE(moved->registered);
+  // The first look's answer leads, then why the second look did not change it.
+  EXPECT_EQ(moved->message.rfind(wrong.message + "; a second look, ", 0), 0u) << moved->message;
+  EXPECT_NE(moved->message.find("columns re-read near the DEM horizon: the re-read skyline moved the pose"),
+            std::string::npos)
+      << moved->message;
   // Hidden (null) columns stay null; a registered first result is left alone.
   Registration done = first;
   done.registered = true;
