@@ -334,4 +334,32 @@ cv::Mat DrawPanoramaLabels(const cv::Mat& panorama, double min_elevation_deg, do
   return out;
 }
 
+std::vector<std::string> WrapText(const std::string& text, double font_scale, int thickness, int max_width_px,
+                                  int max_lines) {
+  if (max_lines <= 0) throw InvalidArgument("WrapText: max_lines must be > 0");
+  auto width = [&](const std::string& s) {
+    int base = 0;
+    return cv::getTextSize(s, cv::FONT_HERSHEY_SIMPLEX, font_scale, thickness, &base).width;
+  };
+  std::vector<std::string> lines;
+  std::istringstream words(text);
+  std::string word, line;
+  bool left_over = false;
+  while (words >> word) {
+    const std::string longer = line.empty() ? word : line + " " + word;
+    if (line.empty() || width(longer) <= max_width_px) {
+      line = longer;
+      continue;
+    }
+    if (static_cast<int>(lines.size()) + 1 == max_lines) {
+      left_over = true;
+      break;
+    }
+    lines.push_back(line);
+    line = word;
+  }
+  if (!line.empty()) lines.push_back(left_over ? line + " ..." : line);
+  return lines;
+}
+
 }  // namespace horizonreg

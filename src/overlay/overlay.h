@@ -55,6 +55,15 @@ struct OverlayResult {
 OverlayResult DrawOverlay(const cv::Mat& image, const CameraPose& pose, const CameraIntrinsics& intrinsics,
                           const OverlayInput& input, const OverlayOptions& options);
 
+// `text` broken at spaces into lines that each fit within `max_width_px`
+// when drawn with OpenCV's FONT_HERSHEY_SIMPLEX at `font_scale` and
+// `thickness` (a word longer than the width gets a line of its own); the
+// lines joined by single spaces give the text back with its runs of spaces
+// closed up. At most `max_lines` (> 0): the last of them ends in "..." when
+// text was left over. Empty text: no lines.
+std::vector<std::string> WrapText(const std::string& text, double font_scale, int thickness, int max_width_px,
+                                  int max_lines);
+
 // Labels a 360-degree equirectangular panorama (render/render.h: x =
 // azimuth from 0 at the left edge, y = elevation from max_elevation_deg at the
 // top to min_elevation_deg at the bottom): compass ticks every 15 deg with

@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <fstream>
 #include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "testing/synthetic_dem.h"
 #include "util/angles.h"
@@ -149,6 +150,35 @@ TEST(ResolveLandmarks, SnapsToTheSummitAndFindsOcclusion) {
   EXPECT_FALSE(r[1].visible);
   EXPECT_TRUE(r[2].visible);
   EXPECT_NEAR(r[2].azimuth_deg, 54.0, 2.0);
+}
+
+// A no_match's reason is drawn in full: lines that fit the width, the text
+// given back when they are joined, and an ellipsis only past max_lines.
+TEST(WrapText, BreaksAtSpacesWithinTheWidth) {
+  const std::string text =
+      "no match: ambiguous: another pose fits almost as well (cost ratio 1.31); a second look, 70 columns re-read "
+      "near the DEM horizon: the re-read skyline does not register on its own";
+  auto width = [](const std::string& s) {
+    int base = 0;
+    return cv::getTextSize(s, cv::FONT_HERSHEY_SIMPLEX, 0.6, 4, &base).width;
+  };
+  ASSERT_GT(width(text), 980);  // one line would run past a 1000 px image
+  const std::vector<std::string> lines = WrapText(text, 0.6, 4, 980, 8);
+  ASSERT_GE(lines.size(), 2u);
+  std::string joined;
+  for (const std::string& l : lines) {
+    EXPECT_LE(width(l), 980) << l;
+    joined += (joined.empty() ? "" : " ") + l;
+  }
+  EXPECT_EQ(joined, text);
+  const std::vector<std::string> two = WrapText(text, 0.6, 4, 300, 2);
+  ASSERT_EQ(two.size(), 2u);
+  EXPECT_EQ(two[1].substr(two[1].size() - 4), " ...");
+  EXPECT_EQ(WrapText("short", 0.6, 4, 980, 8), std::vector<std::string>{"short"});
+  EXPECT_TRUE(WrapText("  ", 0.6, 4, 980, 8).empty());
+  // A word wider than the line gets a line of its own.
+  EXPECT_EQ(WrapText("a " + std::string(200, 'x') + " b", 0.6, 4, 100, 8).size(), 3u);
+  EXPECT_THROW(WrapText(text, 0.6, 4, 980, 0), InvalidArgument);
 }
 
 }  // namespace

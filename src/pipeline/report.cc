@@ -208,11 +208,17 @@ cv::Mat DrawRegistration(const Site& site, const cv::Mat& image, const PhotoRegi
   caption << "no match: " << r.message;
   cv::Mat drawn = DrawSkylineDebug(image, photo.skyline);
   const double s = std::max(0.6, image.cols / 1000.0);
-  const cv::Point at{static_cast<int>(10 * s), static_cast<int>(30 * s)};
-  cv::putText(drawn, caption.str(), at, cv::FONT_HERSHEY_SIMPLEX, 0.6 * s, cv::Scalar(0, 0, 0),
-              static_cast<int>(4 * s), cv::LINE_AA);
-  cv::putText(drawn, caption.str(), at, cv::FONT_HERSHEY_SIMPLEX, 0.6 * s, cv::Scalar(255, 255, 255),
-              std::max(1, static_cast<int>(1.5 * s)), cv::LINE_AA);
+  const int halo = static_cast<int>(4 * s), margin = static_cast<int>(10 * s);
+  // The reason in full, over as many lines as it takes (a no_match's
+  // message, the second look's included, often runs past the width).
+  int y = static_cast<int>(30 * s);
+  for (const std::string& line : WrapText(caption.str(), 0.6 * s, halo, image.cols - 2 * margin, 8)) {
+    const cv::Point at{margin, y};
+    cv::putText(drawn, line, at, cv::FONT_HERSHEY_SIMPLEX, 0.6 * s, cv::Scalar(0, 0, 0), halo, cv::LINE_AA);
+    cv::putText(drawn, line, at, cv::FONT_HERSHEY_SIMPLEX, 0.6 * s, cv::Scalar(255, 255, 255),
+                std::max(1, static_cast<int>(1.5 * s)), cv::LINE_AA);
+    y += static_cast<int>(24 * s);
+  }
   return drawn;
 }
 
