@@ -38,7 +38,11 @@ asan: test-deps
 
 # The unit tests (every module's *_test) under AddressSanitizer + UBSan, and
 # the threaded code's tests under ThreadSanitizer: what .ci/run adds to `make test`.
-SAN_FLAGS = -DCMAKE_BUILD_TYPE=RelWithDebInfo -DHORIZONREG_PYTHON=OFF
+# Line tables only (-g1): the sanitizers' stack traces keep file and line,
+# and the builds take about 40% less (match/fit.cc under ASan: 86 s with -g,
+# 51 s with -g1; the ASan build took 17 of a fresh clone's 89 minutes here on 2026-12-01).
+SAN_FLAGS = -DCMAKE_BUILD_TYPE=RelWithDebInfo -DHORIZONREG_PYTHON=OFF '-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O2 -g1 -DNDEBUG' \
+  '-DCMAKE_C_FLAGS_RELWITHDEBINFO=-O2 -g1 -DNDEBUG'
 TSAN_TESTS = util_thread_pool_test horizon_horizon_test match_match_test pipeline_register_photo_test pipeline_batch_test \
   pipeline_locate_test
 asan-unit: test-deps
@@ -49,7 +53,7 @@ asan-unit: test-deps
 tsan: test-deps
 	cmake -S . -B build-tsan $(SAN_FLAGS) -DHORIZONREG_TSAN=ON
 	cmake --build build-tsan -j $(JOBS) --target $(TSAN_TESTS)
-	cd build-tsan && TSAN_OPTIONS=halt_on_error=1:second_deadlock_stack=1:suppressions=$(CURDIR)/tests/tsan.supp ctest --output-on-failure \
+	cd build-tsan && TSAN_OPTIONS=halt_on_error=1:second_deadlock_stack=1:suppressions=$(CURDIR)/tests/tsan.supp ctest --output-on-failure -j $(JOBS) \
 	  -R 'util/thread_pool_test|horizon/horizon_test|match/match_test|pipeline/register_photo_test|pipeline/batch_test|pipeline/locate_test'
 
 # libFuzzer targets (fuzz/, clang, ASan + UBSan) in build-fuzz: `make fuzz`

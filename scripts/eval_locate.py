@@ -71,6 +71,10 @@ def main():
         print(f"SKIPPED: the {which} photos of ../shared are absent")
         return 77
     names = sorted((f[:-11], d) for d in folders for f in os.listdir(d) if f.endswith(".truth.json"))
+    missing = sorted(only - {name for name, _ in names}) if only else []
+    if missing:
+        print(f"FAIL: --only names no photo of the {which} set: {', '.join(missing)}")
+        return 1
     print(f"{'scene':<24}{'status':<11}{'off_m':>8}{'d_az':>8}{'d_pitch':>8}{'coarse':>7}{'fine':>6}"
           f"{'reg':>6}{'total_s':>8}  note")
     rows = []
