@@ -322,20 +322,23 @@ PositionCheck CheckPositionConsistency(const Site& site, const HorizonProfile& h
   out.best_offset_en_m = center.en;
   out.given_pose = given.pose;
   out.best_pose = center.pose;
-  const bool turned = !refused() && PoseTurnsAtBestPlace(out, co);
-  if (turned || refused()) {
+  if (!refused() && PoseTurnsAtBestPlace(out, co)) {
     out.consistent = false;
-    out.pose_shift_limit = turned;
-    out.only_ridges_limit = !turned && !(center.cost < co.max_cost_ratio * given.cost);
+    out.pose_shift_limit = true;
     std::ostringstream m;
-    m << std::fixed << std::setprecision(1) << "the skyline fits " << (turned ? "" : "clearly ") << "better from "
-      << out.OffsetM() / 1000.0 << " km away at bearing " << std::setprecision(0) << out.BearingDeg()
-      << " deg (cost ratio " << std::setprecision(2) << out.cost_ratio << ")";
-    if (turned)
-      m << " with the camera turned " << std::setprecision(1) << out.AzimuthShiftDeg() << " deg in azimuth and "
-        << out.PitchShiftDeg() << " deg in pitch: the pose rests on the camera position, which looks wrong";
-    else
-      m << ": the given camera position looks wrong";
+    m << std::fixed << std::setprecision(1) << "the skyline fits better from " << out.OffsetM() / 1000.0
+      << " km away at bearing " << std::setprecision(0) << out.BearingDeg() << " deg (cost ratio "
+      << std::setprecision(2) << out.cost_ratio << ") with the camera turned " << std::setprecision(1)
+      << out.AzimuthShiftDeg() << " deg in azimuth and " << out.PitchShiftDeg()
+      << " deg in pitch: the pose rests on the camera position, which looks wrong";
+    out.message = m.str();
+  } else if (refused()) {
+    out.consistent = false;
+    out.only_ridges_limit = !(center.cost < co.max_cost_ratio * given.cost);
+    std::ostringstream m;
+    m << std::fixed << std::setprecision(1) << "the skyline fits clearly better from " << out.OffsetM() / 1000.0
+      << " km away at bearing " << std::setprecision(0) << out.BearingDeg() << " deg (cost ratio "
+      << std::setprecision(2) << out.cost_ratio << "): the given camera position looks wrong";
     if (out.only_ridges_limit)
       m << ", or the pose the inner ridges chose is (its position must fit within " << std::setprecision(2)
         << max_cost_ratio << ")";
