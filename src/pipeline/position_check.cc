@@ -32,7 +32,6 @@ void PositionCheckOptions::Check() const {
   if (!(wide_radius_ridges_m >= 0.0))
     ThrowField("PositionCheckOptions::wide_radius_ridges_m", wide_radius_ridges_m, ">= 0");
   if (!(min_offset_m >= 0.0)) ThrowField("PositionCheckOptions::min_offset_m", min_offset_m, ">= 0");
-  if (!(max_pose_shift_deg > 0.0)) ThrowField("PositionCheckOptions::max_pose_shift_deg", max_pose_shift_deg, "> 0");
   if (!(wide_trigger >= -1.0 && wide_trigger <= 1.0))
     ThrowField("PositionCheckOptions::wide_trigger", wide_trigger, "in [-1, 1] (-1: never)");
   if (!(wide_spacing_m > 0.0)) ThrowField("PositionCheckOptions::wide_spacing_m", wide_spacing_m, "> 0");
@@ -86,11 +85,6 @@ void HoldSectorEdges(HorizonProfile& h) {
 }
 
 }  // namespace
-
-bool PoseTurnsAtBestPlace(const PositionCheck& c, const PositionCheckOptions& co) {
-  return c.OffsetM() > 0.0 && c.OffsetM() >= co.min_offset_m && c.cost_ratio < 1.0 - kMinGain &&
-         (std::abs(c.AzimuthShiftDeg()) > co.max_pose_shift_deg || std::abs(c.PitchShiftDeg()) > co.max_pose_shift_deg);
-}
 
 PositionCheck CheckPositionConsistency(const Site& site, const HorizonProfile& horizon, const Skyline& skyline,
                                        const Registration& reg, const RegistrationOptions& options,
@@ -322,17 +316,7 @@ PositionCheck CheckPositionConsistency(const Site& site, const HorizonProfile& h
   out.best_offset_en_m = center.en;
   out.given_pose = given.pose;
   out.best_pose = center.pose;
-  if (!refused() && PoseTurnsAtBestPlace(out, co)) {
-    out.consistent = false;
-    out.pose_shift_limit = true;
-    std::ostringstream m;
-    m << std::fixed << std::setprecision(1) << "the skyline fits better from " << out.OffsetM() / 1000.0
-      << " km away at bearing " << std::setprecision(0) << out.BearingDeg() << " deg (cost ratio "
-      << std::setprecision(2) << out.cost_ratio << ") with the camera turned " << std::setprecision(1)
-      << out.AzimuthShiftDeg() << " deg in azimuth and " << out.PitchShiftDeg()
-      << " deg in pitch: the pose rests on the camera position, which looks wrong";
-    out.message = m.str();
-  } else if (refused()) {
+  if (refused()) {
     out.consistent = false;
     out.only_ridges_limit = !(center.cost < co.max_cost_ratio * given.cost);
     std::ostringstream m;

@@ -44,18 +44,6 @@ struct PositionCheckOptions {
   // bowls reach 0.68-0.88).
   double max_cost_ratio = 0.90;
   double min_offset_m = 500.0;
-  // Refused as well when the best place, at least min_offset_m away, fits
-  // better at all and its pose turns more than this from the given
-  // position's in azimuth or pitch: the skyline then fits another stretch
-  // of the panorama from a few km away, and the pose rests on where the
-  // camera stands rather than on what it sees. Measured: the 117
-  // registrations of the real photos at their true positions (as taken,
-  // --hfov, --agl 2 with and without it, eight photometric copies) whose
-  // best place fits better turn 0.03-1.6 deg (ratios 0.91-0.998); the
-  // false registration left in the ring probes, AK01b_20090827 from 5 km
-  // at 330 deg given --agl 2 and --hfov (165 deg off), a place 2.6 km away
-  // at a ratio of 0.931 turned 23 deg in azimuth and 16 in pitch.
-  double max_pose_shift_deg = 5.0;
   // A registration whose rivals only the inner ridges ruled out
   // (pipeline/ridge_check.h; RegisterPhoto sets it): a pose the skyline
   // alone left ambiguous must sit at the bottom of its bowl. Refused from a
@@ -107,9 +95,6 @@ struct PositionCheck {
   // the limit) can carry a pose 0.2-2.4 deg away, and the skyline cannot
   // tell which place is right.
   CameraPose given_pose, best_pose;
-  // Refused because the best place's pose turns more than
-  // PositionCheckOptions::max_pose_shift_deg from the given position's.
-  bool pose_shift_limit = false;
   // Refused only under the stricter limit of a registration the inner
   // ridges decided (PositionCheckOptions::ridges_decided): no place fits
   // better than max_cost_ratio, so the pose is doubted, not the position.
@@ -121,11 +106,6 @@ struct PositionCheck {
   double AzimuthShiftDeg() const;
   double PitchShiftDeg() const { return best_pose.pitch_deg - given_pose.pitch_deg; }
 };
-
-// Whether the best place `c` found, at least co.min_offset_m away, fits
-// better (beyond rounding) with a pose turned more than
-// co.max_pose_shift_deg from the given position's in azimuth or pitch.
-bool PoseTurnsAtBestPlace(const PositionCheck& c, const PositionCheckOptions& co);
 
 // Checks `reg` (registered at `horizon`, seen from `horizon.observer`) for
 // position consistency. The eye at each place: at the given altitude but

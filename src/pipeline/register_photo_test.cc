@@ -237,40 +237,6 @@ TEST(RegisterPhoto, AnInitialPoseIsConfirmedOrTrusted) {
   }
 }
 
-TEST(PositionCheck, ABestPlaceThatTurnsThePoseFarRefusesIt) {
-  // The false registration left in the real photos' ring probes
-  // (AK01b_20090827 from 5 km, --agl 2 --hfov): a place 2.6 km away fits at
-  // a ratio of 0.931 with the camera turned 23 deg and 16 deg.
-  PositionCheck c;
-  c.cost_ratio = 0.931;
-  c.best_offset_en_m = {2400.0, 1040.0};
-  c.given_pose = CameraPose{224.7, -8.4, -1.2};
-  c.best_pose = CameraPose{248.0, 7.3, 0.0};
-  const PositionCheckOptions co;
-  EXPECT_TRUE(PoseTurnsAtBestPlace(c, co));
-  // The true registrations' largest turn, 1.6 deg at a ratio of 0.965.
-  c.cost_ratio = 0.965;
-  c.best_pose = CameraPose{223.1, -9.6, -1.2};
-  EXPECT_FALSE(PoseTurnsAtBestPlace(c, co));
-  // Azimuth alone, across north, and pitch alone.
-  c.given_pose = CameraPose{357.0, 0.0, 0.0};
-  c.best_pose = CameraPose{3.5, 0.0, 0.0};
-  EXPECT_TRUE(PoseTurnsAtBestPlace(c, co));
-  c.best_pose = CameraPose{357.0, -5.5, 0.0};
-  EXPECT_TRUE(PoseTurnsAtBestPlace(c, co));
-  // Not when the place fits no better (rounding), lies too near, or is the given one.
-  c.cost_ratio = 0.9995;
-  EXPECT_FALSE(PoseTurnsAtBestPlace(c, co));
-  c.cost_ratio = 0.95;
-  c.best_offset_en_m = {300.0, 0.0};
-  EXPECT_FALSE(PoseTurnsAtBestPlace(c, co));
-  c.best_offset_en_m = {0.0, 0.0};
-  EXPECT_FALSE(PoseTurnsAtBestPlace(c, co));
-  PositionCheckOptions bad;
-  bad.max_pose_shift_deg = 0.0;
-  EXPECT_THROW(bad.Check(), InvalidArgument);
-}
-
 TEST(PositionCheck, PassesTheTruePositionAndRefusesOneTwoKilometresOff) {
   RenderedRing scene;
   const Site& site = scene.site;
@@ -293,7 +259,6 @@ TEST(PositionCheck, PassesTheTruePositionAndRefusesOneTwoKilometresOff) {
   // The best place is the given one: the orientation does not move.
   EXPECT_EQ(r.position_check->AzimuthShiftDeg(), 0.0);
   EXPECT_EQ(RegistrationReport(site, r, "arguments", 1.0)["position_check"]["best_azimuth_shift_deg"], 0.0);
-  EXPECT_EQ(RegistrationReport(site, r, "arguments", 1.0)["position_check"]["pose_shift_limit"], false);
   // Trusted: no check.
   po.check_position.reset();
   EXPECT_FALSE(RegisterPhoto(site, photo, po, &pool).position_check.has_value());
@@ -320,23 +285,6 @@ TEST(PositionCheck, PassesTheTruePositionAndRefusesOneTwoKilometresOff) {
             std::abs(AngDiffDeg(c.given_pose.azimuth_deg, truth_az)) - 1.0);
   EXPECT_GT(c.AzimuthShiftDeg() * AngDiffDeg(truth_az, c.given_pose.azimuth_deg), 0.0);
   EXPECT_NEAR(c.PitchShiftDeg(), 0.0, 0.5);  // the cones' tops stand level around the truth
-  EXPECT_FALSE(c.pose_shift_limit);  // refused by the cost
-  // With no cost limit to speak of, the pose the best place turns to
-  // refuses it alone: more than 3 deg (above) past a limit of 2, not past 30.
-  PositionCheckOptions turn;
-  turn.max_cost_ratio = 0.01;
-  turn.max_cost_ratio_ridges = 0.01;
-  turn.max_pose_shift_deg = 2.0;
-  const PositionCheck turned =
-      CheckPositionConsistency(wrong, wrong.horizon(), r.skyline, r.registration, options, turn, &pool);
-  EXPECT_FALSE(turned.consistent);
-  EXPECT_TRUE(turned.pose_shift_limit);
-  EXPECT_NE(turned.message.find("turned"), std::string::npos) << turned.message;
-  turn.max_pose_shift_deg = 30.0;
-  const PositionCheck kept =
-      CheckPositionConsistency(wrong, wrong.horizon(), r.skyline, r.registration, options, turn, &pool);
-  EXPECT_TRUE(kept.consistent) << kept.message;
-  EXPECT_FALSE(kept.pose_shift_limit);
   // Without a pool: the same answer.
   const PositionCheck serial = CheckPositionConsistency(wrong, wrong.horizon(), r.skyline, r.registration, options,
                                                         PositionCheckOptions{}, nullptr);
@@ -362,7 +310,6 @@ TEST(PositionCheck, PassesTheTruePositionAndRefusesOneTwoKilometresOff) {
   // it, the same check passes it, and refuses it once the ridges decided.
   if (c.cost_ratio < 1.0) {
     PositionCheckOptions ridges;
-    ridges.max_pose_shift_deg = 180.0;  // the cost limits alone (the best place turns the pose 7 deg)
     ridges.max_cost_ratio = 0.5 * c.cost_ratio;
     ridges.max_cost_ratio_ridges = std::min(0.99, 1.5 * c.cost_ratio);
     EXPECT_TRUE(CheckPositionConsistency(wrong, wrong.horizon(), r.skyline, r.registration, options, ridges, &pool)
@@ -419,7 +366,6 @@ TEST(PositionCheck, TheWideLookReachesABowlThePatternCannot) {
   const GeodeticPoint east = LocalFrame(scene.site.observer()).GeodeticFromEnu(Eigen::Vector3d(2500.0, 0.0, 0.0));
   const Site wrong(scene.ring.window, east.lat_deg, east.lon_deg, RingSiteOptions(), &scene.pool);
   PositionCheckOptions co;
-  co.max_pose_shift_deg = 180.0;  // the cost limit alone (the places towards the truth turn the pose 7 deg)
   co.far_ring_m = 0.0;
   co.max_horizons = 9;  // the given place and the first ring: no walk
   co.wide_radius_m = 0.0;

@@ -183,8 +183,7 @@ nlohmann::json RegistrationReport(const Site& site, const PhotoRegistration& pho
                            {"best_pitch_shift_deg", Rounded(c.PitchShiftDeg(), 2)},
                            {"horizons", c.horizons},
                            {"wide_places", c.wide_places},
-                           {"ridges_limit", c.only_ridges_limit},
-                           {"pose_shift_limit", c.pose_shift_limit}};
+                           {"ridges_limit", c.only_ridges_limit}};
     j["timing_ms"]["position_check"] = Rounded(c.ms, 1);
   }
   return j;
