@@ -11,6 +11,7 @@
 
 #include "match/predicted.h"
 #include "skyline/band.h"
+#include "skyline/refine.h"
 #include "util/angles.h"
 #include "util/errors.h"
 
@@ -442,6 +443,24 @@ std::optional<Registration> RecheckWithGuidedSkyline(const cv::Mat& image, const
   // A near miss, not a guess: at most 0.2 short of the inlier share needed.
   const double min_first_inliers = options.min_inlier_fraction - 0.2;
   constexpr double kMinStep = 15.0;  // BGR distance of the 3-row means across the step (sky noise ~3)
+  // A faint miss: a first look short of that (at most 0.3 short of the
+  // inlier share, its ambiguity at least 0.8 of the gate) is looked at again
+  // as a hazy photo's: the columns the extraction nulled are read too, and a
+  // step needs 2.5 times the sky's own noise (the median over the columns of
+  // the largest step in the 18 rows from 6 above the extracted boundary),
+  // within 9-15. CG05_20050811_190000: its far range fades into haze 8-12
+  // over a smooth sky (steps up to 3.1), its true pose fits 38% on the first
+  // look (ambiguity 1.15), 67% (1.42) on the faint re-read; at 15 and without
+  // the nulled columns 66 columns were re-read and it stayed unregistered, at
+  // 9.5 it is refused too. For a near miss the faint look is not taken: the
+  // nulled columns and fainter steps help the rival's re-read as much (the
+  // EXIF-less copies of AK01b_20100525 and AK01b_20100602 were refused, the
+  // rival within 8%), and from 2 km beside AKJNC_20120813 with --sensors the
+  // rival's re-read fell behind a pose 2.7 deg off. JPEG's blocks step 5-8
+  // in a sky at quality 30, so a fixed 9 read them.
+  const double min_faint_inliers = options.min_inlier_fraction - 0.3;
+  constexpr double kMinFaintStep = 9.0, kSkyNoiseFactor = 2.5;
+  constexpr int kSkyRowsFrom = 6, kSkyRows = 18, kMinSkyRows = 12;
   constexpr double kMaxPoseMoveDeg = 0.2;
   // The best alternative re-read near its own projection, as the best pose
   // was: its misfit at least this much over the best's (from 2 km away the
@@ -450,7 +469,7 @@ std::optional<Registration> RecheckWithGuidedSkyline(const cv::Mat& image, const
   constexpr double kMinRivalMisfitRatio = 1.1;
   // The columns to re-read inflate the best pose's cost, so its ambiguity
   // ratio reads low; the search on the re-read skyline checks it again.
-  const double min_first_ambiguity = 0.85 * options.min_ambiguity_ratio;
+  const double min_first_ambiguity = 0.85 * options.min_ambiguity_ratio, min_faint_ambiguity = 0.8 * options.min_ambiguity_ratio;
   // ... and its residual, which the same columns inflate, at most 20% over
   // the gate.
   const double max_first_rms = 1.2 * options.max_rms_px;
@@ -462,9 +481,10 @@ std::optional<Registration> RecheckWithGuidedSkyline(const cv::Mat& image, const
   // AK01b_20100525 from 2 km away 4.6 deg off, 1 of 91 wrong probes and 1
   // of 468 ring probes; without it 7 of 13 register, none falsely).
   if (first.registered || skyline.overlay_top_rows > 0 || !(first.focal_px > 0.0) ||
-      first.inlier_fraction < min_first_inliers ||
-      !(first.model_rms_px <= max_first_rms * px_scale) || first.ambiguity_ratio < min_first_ambiguity)
+      first.inlier_fraction < min_faint_inliers || !(first.model_rms_px <= max_first_rms * px_scale) ||
+      first.ambiguity_ratio < min_faint_ambiguity)
     return std::nullopt;
+  const bool faint = first.inlier_fraction < min_first_inliers || first.ambiguity_ratio < min_first_ambiguity;
   const cv::Mat bgr = AsBgr(image);
   if (bgr.type() != CV_8UC3 || bgr.cols != w || bgr.rows != h || static_cast<int>(skyline.y.size()) != w)
     return std::nullopt;
@@ -473,6 +493,22 @@ std::optional<Registration> RecheckWithGuidedSkyline(const cv::Mat& image, const
     for (int r = r0; r < r0 + 3; ++r) m += cv::Vec3d(bgr.at<cv::Vec3b>(r, c));
     return m / 3.0;
   };
+  double min_step = kMinStep;
+  if (faint) {
+    std::vector<double> largest;  // per column (every other one) with enough sky rows above its boundary
+    for (int c = 0; c < w; c += 2) {
+      const double y = skyline.MatchY(c);
+      if (!std::isfinite(y)) continue;
+      const int below = static_cast<int>(std::floor(y)) - kSkyRowsFrom;
+      double step = 0.0;
+      int rows = 0;
+      for (int r = std::max(3, below - kSkyRows); r < below && r + 2 < h; ++r, ++rows)
+        step = std::max(step, cv::norm(mean3(r, c) - mean3(r - 3, c)));
+      if (rows >= kMinSkyRows) largest.push_back(step);
+    }
+    if (largest.size() >= 16)
+      min_step = std::clamp(kSkyNoiseFactor * skyline_detail::Quantile(largest, 0.5), kMinFaintStep, kMinStep);
+  }
   // Whether the rows above a step at row r of column c are sky: the 3 rows
   // from `gap` rows above it continue the 3 above those. Read next to the
   // step (gap 3) or, on a soft real edge whose transition still fills those
@@ -481,7 +517,7 @@ std::optional<Registration> RecheckWithGuidedSkyline(const cv::Mat& image, const
   // re-encoded (JPEG quality 95), grey or EXIF-less copies of the real
   // photos register 25 of 39 instead of 21.
   auto sky_above = [&](int r, int gap, int c) {
-    return r - gap - 3 >= 0 && cv::norm(mean3(r - gap, c) - mean3(r - gap - 3, c)) <= 0.5 * kMinStep;
+    return r - gap - 3 >= 0 && cv::norm(mean3(r - gap, c) - mean3(r - gap - 3, c)) <= 0.5 * min_step;
   };
   std::vector<double> scores;
   // The skyline re-read near the horizon projected at `pose`, and how many
@@ -490,7 +526,9 @@ std::optional<Registration> RecheckWithGuidedSkyline(const cv::Mat& image, const
     const std::vector<double> pred = PredictedSkyline(horizon, pose, k);
     std::pair<Skyline, int> out{skyline, 0};
     for (int c = 0; c < w; ++c) {
-      const double p = pred[c], y = skyline.MatchY(c);
+      // A column with no boundary: in a faint look read down to the bottom
+      // of the window (a faint ridge the extraction nulled), else hidden.
+      const double p = pred[c], y = std::isfinite(skyline.MatchY(c)) || !faint ? skyline.MatchY(c) : h;
       if (!std::isfinite(p) || !std::isfinite(y) || y - p <= tau) continue;  // fits, lies above, or is hidden
       // Boundaries between rows r - 1 and r, above the extracted one.
       // (Never within a strip along the bottom: under one along the top
@@ -501,10 +539,10 @@ std::optional<Registration> RecheckWithGuidedSkyline(const cv::Mat& image, const
       if (hi < lo) continue;
       const auto [r, yr, contrast] = StrongestStep(
           lo, hi, [&](int row) { return cv::norm(mean3(row, c) - mean3(row - 3, c)); }, scores);
-      if (contrast < kMinStep || !(sky_above(r, 3, c) || sky_above(r, 6, c))) continue;
+      if (contrast < min_step || !(sky_above(r, 3, c) || sky_above(r, 6, c))) continue;
       out.first.y[c] = yr;
       if (c < static_cast<int>(out.first.y_alt.size())) out.first.y_alt[c] = NAN;  // re-read: one candidate
-      out.first.confidence[c] = std::min(1.0, contrast / (4.0 * kMinStep));
+      out.first.confidence[c] = std::min(1.0, contrast / (4.0 * min_step));
       ++out.second;
     }
     return out;

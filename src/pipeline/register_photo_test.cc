@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <cstdio>
 #include <opencv2/core.hpp>
 #include <thread>
 
@@ -473,6 +474,55 @@ TEST_F(GuidedSkylineTest, ASoftSnowEdgeIsReadToo) {
   ASSERT_NO_FATAL_FAILURE(ExpectTheSecondLookRegistersTheTruth(first));
 }
 
+// A far range in haze: a step of 8-12 over a smooth sky (BGR distance of
+// 3-row means), which the extraction nulled. After a faint miss the second
+// look reads those columns too, where the DEM horizon predicts them; a step
+// of 6 is not read, nor a step of 11.5 under a sky whose own rows step by 7.
+TEST_F(GuidedSkylineTest, AFaintRangeTheExtractionNulledIsReadNearThePrediction) {
+  auto faint_copy = [&](const cv::Vec3b& below) {
+    cv::Mat faint = image.clone();
+    for (int c = 0; c < k.width * 30 / 100; ++c) {
+      const int top = static_cast<int>(std::lround(truth_y[c]));
+      for (int r = std::max(0, top); r < k.height; ++r) faint.at<cv::Vec3b>(r, c) = below;
+    }
+    return faint;
+  };
+  Skyline nulled = skyline;
+  for (int c = 0; c < k.width * 30 / 100; ++c) nulled.y[c] = NAN, nulled.confidence[c] = 0.0;
+  // A faint miss, as the photo's first look gives it: 40% of the skyline
+  // fits (the rest read low or not at all), 0.2-0.3 short of the gate.
+  Registration first = Register(nulled, horizon, RegistrationOptions{});
+  ASSERT_GT(first.focal_px, 0.0);
+  first.registered = false;
+  first.inlier_fraction = RegistrationOptions{}.min_inlier_fraction - 0.25;
+  const cv::Mat hazy = faint_copy(cv::Vec3b(kSky[0] - 9, kSky[1] - 6, kSky[2] - 4));  // 11.5
+  // A near miss (within 0.2 of the gate) is read as before: nulled columns
+  // stay null, so nothing is re-read here; 0.3 short or more, no second look.
+  Registration near = first;
+  near.inlier_fraction = RegistrationOptions{}.min_inlier_fraction - 0.15;
+  EXPECT_FALSE(RecheckWithGuidedSkyline(hazy, nulled, horizon, near, RegistrationOptions{}));
+  Registration far = first;
+  far.inlier_fraction = RegistrationOptions{}.min_inlier_fraction - 0.35;
+  EXPECT_FALSE(RecheckWithGuidedSkyline(hazy, nulled, horizon, far, RegistrationOptions{}));
+  const auto again = RecheckWithGuidedSkyline(hazy, nulled, horizon, first, RegistrationOptions{});
+  ASSERT_TRUE(again);
+  ASSERT_TRUE(again->registered) << again->message;
+  EXPECT_NEAR(AngDiffDeg(again->pose.azimuth_deg, truth.azimuth_deg), 0.0, 0.05);
+  int reread = 0;
+  ASSERT_EQ(std::sscanf(again->message.c_str(), "registered (%d columns re-read", &reread), 1) << again->message;
+  EXPECT_GE(reread, k.width * 25 / 100);
+  const cv::Mat blocks = faint_copy(cv::Vec3b(kSky[0] - 4, kSky[1] - 4, kSky[2] - 2));  // 6
+  EXPECT_FALSE(RecheckWithGuidedSkyline(blocks, nulled, horizon, first, RegistrationOptions{}));
+  // In a sky whose own rows step by 7 (JPEG's 8-row blocks at a low
+  // quality) the range's 11.5 is no step: the re-read needs 2.5 times the
+  // sky's steps.
+  cv::Mat blocky = hazy.clone();
+  for (int c = 0; c < k.width; ++c)
+    for (int r = 0; r < k.height && r < truth_y[c] - 1; ++r)
+      if ((r / 8) % 2) blocky.at<cv::Vec3b>(r, c) -= cv::Vec3b(4, 4, 4);
+  EXPECT_FALSE(RecheckWithGuidedSkyline(blocky, nulled, horizon, first, RegistrationOptions{}));
+}
+
 TEST_F(GuidedSkylineTest, AUniformSkyOrAWrongPoseIsNotConfirmed) {
   const Registration first = Register(skyline, horizon, RegistrationOptions{});
   ASSERT_FALSE(first.registered) << first.message;
@@ -495,7 +545,7 @@ TEST_F(GuidedSkylineTest, AUniformSkyOrAWrongPoseIsNotConfirmed) {
   EXPECT_NE(moved->message.find("columns re-read near the DEM horizon: the re-read skyline moved the pose"),
             std::string::npos)
       << moved->message;
-  // Hidden (null) columns stay null; a registered first result is left alone.
+  // A registered first result is left alone.
   Registration done = first;
   done.registered = true;
   EXPECT_FALSE(RecheckWithGuidedSkyline(image, skyline, horizon, done, RegistrationOptions{}));
