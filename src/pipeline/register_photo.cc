@@ -443,8 +443,8 @@ std::optional<Registration> RecheckWithGuidedSkyline(const cv::Mat& image, const
   // A near miss, not a guess: at most 0.2 short of the inlier share needed.
   const double min_first_inliers = options.min_inlier_fraction - 0.2;
   constexpr double kMinStep = 15.0;  // BGR distance of the 3-row means across the step (sky noise ~3)
-  // A faint miss: a first look short of that (at most 0.3 short of the
-  // inlier share, its ambiguity at least 0.8 of the gate) is looked at again
+  // A faint miss: a first look short of that (0.2-0.3 short of the inlier
+  // share, its ambiguity at least 0.8 of the gate) is looked at again
   // as a hazy photo's: the columns the extraction nulled are read too, and a
   // step needs 2.5 times the sky's own noise (the median over the columns of
   // the largest step in the 18 rows from 6 above the extracted boundary),
@@ -456,8 +456,11 @@ std::optional<Registration> RecheckWithGuidedSkyline(const cv::Mat& image, const
   // nulled columns and fainter steps help the rival's re-read as much (the
   // EXIF-less copies of AK01b_20100525 and AK01b_20100602 were refused, the
   // rival within 8%), and from 2 km beside AKJNC_20120813 with --sensors the
-  // rival's re-read fell behind a pose 2.7 deg off. JPEG's blocks step 5-8
-  // in a sky at quality 30, so a fixed 9 read them.
+  // rival's re-read fell behind a pose 2.7 deg off; a miss with 76% of its
+  // skyline fitting but ambiguous at 0.8-0.85 of the gate is no hazy photo
+  // (the centre half of AK01_20070922 from 2 km east registered 1.6 deg off
+  // through the faint look). JPEG's blocks step 5-8 in a sky at quality 30,
+  // so a fixed 9 read them.
   const double min_faint_inliers = options.min_inlier_fraction - 0.3;
   constexpr double kMinFaintStep = 9.0, kSkyNoiseFactor = 2.5;
   constexpr int kSkyRowsFrom = 6, kSkyRows = 18, kMinSkyRows = 12;
@@ -481,10 +484,10 @@ std::optional<Registration> RecheckWithGuidedSkyline(const cv::Mat& image, const
   // AK01b_20100525 from 2 km away 4.6 deg off, 1 of 91 wrong probes and 1
   // of 468 ring probes; without it 7 of 13 register, none falsely).
   if (first.registered || skyline.overlay_top_rows > 0 || !(first.focal_px > 0.0) ||
-      first.inlier_fraction < min_faint_inliers || !(first.model_rms_px <= max_first_rms * px_scale) ||
-      first.ambiguity_ratio < min_faint_ambiguity)
+      first.inlier_fraction < min_faint_inliers || !(first.model_rms_px <= max_first_rms * px_scale))
     return std::nullopt;
-  const bool faint = first.inlier_fraction < min_first_inliers || first.ambiguity_ratio < min_first_ambiguity;
+  const bool faint = first.inlier_fraction < min_first_inliers;
+  if (first.ambiguity_ratio < (faint ? min_faint_ambiguity : min_first_ambiguity)) return std::nullopt;
   const cv::Mat bgr = AsBgr(image);
   if (bgr.type() != CV_8UC3 || bgr.cols != w || bgr.rows != h || static_cast<int>(skyline.y.size()) != w)
     return std::nullopt;

@@ -183,8 +183,11 @@ Registration RegisterImage(const cv::Mat& image, const Skyline& skyline, const H
 // own (the whole decision, ambiguity and evidence included) at that pose.
 // Only such columns are re-read: the extractor's sky is uniform, so a clear
 // step inside it is structure, whereas the terrain below a projection is full
-// of edges that would confirm any pose; null (hidden) columns stay null. The
-// new pose must lie within 0.2 deg of the first one. Re-reading near a
+// of edges that would confirm any pose; null (hidden) columns stay null. A
+// faint miss (0.2-0.3 short of the share, ambiguity at least 0.8 of the gate:
+// a hazy far range) reads the null columns too, with a step threshold of 2.5
+// times the sky's own step noise above the extracted boundary, within 9-15
+// BGR instead of 15. The new pose must lie within 0.2 deg of the first one. Re-reading near a
 // pose's own projection helps any pose, so that search's rival (the
 // alternative of its ambiguity ratio) is re-read near its own projection and
 // refined, and its misfit must still be at least 1.1 times the best's.

@@ -501,6 +501,11 @@ TEST_F(GuidedSkylineTest, AFaintRangeTheExtractionNulledIsReadNearThePrediction)
   Registration near = first;
   near.inlier_fraction = RegistrationOptions{}.min_inlier_fraction - 0.15;
   EXPECT_FALSE(RecheckWithGuidedSkyline(hazy, nulled, horizon, near, RegistrationOptions{}));
+  // Most of the skyline fitting but ambiguous at 0.8-0.85 of the gate: no
+  // hazy photo, no second look.
+  Registration ambiguous = near;
+  ambiguous.ambiguity_ratio = 0.82 * RegistrationOptions{}.min_ambiguity_ratio;
+  EXPECT_FALSE(RecheckWithGuidedSkyline(hazy, nulled, horizon, ambiguous, RegistrationOptions{}));
   Registration far = first;
   far.inlier_fraction = RegistrationOptions{}.min_inlier_fraction - 0.35;
   EXPECT_FALSE(RecheckWithGuidedSkyline(hazy, nulled, horizon, far, RegistrationOptions{}));
