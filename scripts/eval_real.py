@@ -49,7 +49,7 @@ Modes (each a per-photo table and a summary):
   ring-noalt-hfov  (not in the default set) the ring without the altitude
             and with --hfov from the truth: a webcam listed with its
             coordinates and opening angle, no height (--floors
-            ring-noalt-hfov=N; 1 false known, see the README)
+            ring-noalt-hfov=N; 0 false since 2026-12-02, see the README)
   wrong-noexif  (not in the default set) the same probes with --no-exif
             (the opening angle unknown, 10-120 deg searched)
   noexif    (not in the default set) plain on the pixels alone: each photo

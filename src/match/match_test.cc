@@ -457,6 +457,43 @@ TEST(Register, TheAzimuthScanRegistersAPlainSkyline) {
   EXPECT_EQ(wide.scanned_hypotheses, 0);
 }
 
+// A skyline with no peak or dip (one cliff rising over a level rough
+// ridge: a texture of 1 px every 0.7 deg) seen through a window of opening
+// angles +-12% wide: the scan runs alone, a dozen focal lengths, and its
+// minima near the cliff (one every 0.7 deg at each focal length, all
+// fitting but for the few columns on the cliff) outnumber the 32 kept. Kept
+// as they came, they were all one solution: the search had no alternative
+// to measure the ambiguity against and called the pose unambiguous (a plain
+// strip of a real photo, given a position 2 km off, registered 95.6 deg off
+// so). With up to 32 distinct minima kept besides, the level ridge
+// elsewhere is the rival, and the pose is still found (distinct minima
+// alone dropped the start nearest to it).
+TEST(Register, TheAzimuthScanKeepsDistinctPoses) {
+  HorizonProfile p = SyntheticHorizon(0.25, true);
+  for (int i = 0; i < p.size(); ++i) {
+    const double az = p.AzimuthDeg(i);
+    p.elevation_deg[i] = 1.0 + 0.5 / (1.0 + std::exp(-(az - 97.0) / 0.3)) + 0.06 * std::sin(2.0 * kPi * az / 0.7);
+  }
+  const CameraPose pose{116.5, -4.0, 4.0};
+  const auto k = CameraIntrinsics::FromHfov(1024, 683, 50.0);
+  Skyline s = SkylineOf(p, pose, k);
+  for (int c = 410; c < s.width; ++c) s.y[c] = NAN, s.confidence[c] = 0.0;
+  RegistrationOptions window;
+  window.min_hfov_deg = 50.0 * 0.88, window.max_hfov_deg = 50.0 * 1.12;
+  const Registration r = Register(s, p, window);
+  EXPECT_LE(r.image_extrema, 1);
+  EXPECT_GT(r.scanned_hypotheses, 0);
+  ASSERT_FALSE(r.candidates.empty()) << r.message;
+  const PoseCandidate& best = r.candidates[0];
+  const bool other = std::any_of(r.candidates.begin() + 1, r.candidates.end(), [&](const PoseCandidate& c) {
+    return std::abs(AngDiffDeg(c.pose.azimuth_deg, best.pose.azimuth_deg)) > 5.0;
+  });
+  EXPECT_TRUE(other) << r.candidates.size() << " candidates, all within 5 deg of the best";
+  EXPECT_TRUE(std::isfinite(r.ambiguity_ratio)) << r.message;
+  EXPECT_TRUE(r.registered) << r.message;
+  EXPECT_NEAR(AngDiffDeg(r.pose.azimuth_deg, pose.azimuth_deg), 0.0, 0.05);
+}
+
 TEST(Register, FlatOrRepeatingHorizonGivesNoMatch) {
   const CameraPose pose{80.0, 0.0, 0.0};
   const auto k = CameraIntrinsics::FromHfov(1024, 683, 40.0);

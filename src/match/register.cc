@@ -189,7 +189,7 @@ constexpr double kMaxBridgedGap = 0.03;
 // azimuth is also scanned (ScanAzimuths).
 constexpr int kScanBelowHypotheses = 16;
 constexpr double kScanStepDeg = 0.2;  // azimuth step of the scan
-constexpr size_t kScanKept = 32;      // the scan's best local minima scored
+constexpr size_t kScanKept = 32;      // the scan's best local minima scored (and up to as many more distinct poses)
 constexpr double kScanFocalStep = 1.02;  // focal lengths scanned over the window, this ratio apart ...
 constexpr int kScanMaxFocals = 16;        // ... at most this many (a wider window is not scanned) ...
 constexpr int kScanMaxFocalsCompass = 160;  // ... or this many where a compass bounds the azimuths
@@ -201,12 +201,32 @@ constexpr int kScanMaxFocalsCompass = 160;  // ... or this many where a compass 
 // kScanStepDeg) at each focal length of a narrow window: the pitch and
 // roll that best lay the columns on the DEM horizon there (linearised
 // about a level camera, least squares trimmed twice), ranked by a
-// truncated square of the residuals; the best local minima in azimuth are
-// scored as the pairs' hypotheses are. Only the azimuths a compass prior
-// admits; empty when the window of opening angles is wide and no compass
-// bounds the azimuths.
+// truncated square of the residuals; the best kScanKept local minima in
+// azimuth, then up to kScanKept more that are each a pose distinct from
+// every one kept (SamePose), are scored as the pairs' hypotheses are. Only
+// the azimuths a compass prior admits; empty when the window of opening
+// angles is wide and no compass bounds the azimuths.
+// The distinct ones are the rivals: a plain skyline's best minima can all
+// be one solution (one azimuth at the window's 11 focal lengths, and the
+// minima a rough ridge leaves beside it), and the search then refined 3
+// distinct poses, none of them a rival, and called the pose unambiguous:
+// the centre half of CG05_20050811_190000 (one image extremum, 190
+// informative columns) given a position 2 km away registered so 95.6 deg
+// off (`eval_real.py --modes ring-crop-narrow`); with them a rival fits
+// within 12% and it answers no_match. AK01b_20090827 given a place 5 km
+// off without the altitude and its opening angle (`--modes
+// ring-noalt-hfov`) registered 165.4 deg off at an ambiguity of 1.40, the
+// gate; with them 1.14. Measured and not kept: the distinct ones only
+// (no repeats of the best minimum) lost the true pose of a plain skyline
+// over a rough ridge, its nearest start dropped as the same pose as a
+// better-scoring one (unit test TheAzimuthScanKeepsDistinctPoses); the
+// distinct ones refined only when the search found no alternative among
+// the rest kept the 165.4 deg registration.
+bool SamePose(const Pose4& a, const Pose4& b, double width);
+
 std::vector<Candidate> ScanAzimuths(const Scorer& scorer, const HorizonLookup& lookup, const std::vector<Column>& cols,
-                                    const RegistrationOptions& options, double fmin, double fmax, double tau_px) {
+                                    const RegistrationOptions& options, double fmin, double fmax, double tau_px,
+                                    double width) {
   const SensorPrior& prior = options.prior;
   const double compass_span = prior.compass_deg ? prior.gate_sigmas * prior.compass_sigma_deg : 180.0;
   const bool bounded = compass_span < 180.0;
@@ -287,10 +307,22 @@ std::vector<Candidate> ScanAzimuths(const Scorer& scorer, const HorizonLookup& l
   }
   std::sort(hits.begin(), hits.end(), [](const Hit& a, const Hit& b) { return a.score < b.score; });
   std::vector<Candidate> out;
-  for (const Hit& h : hits) {
-    if (out.size() >= kScanKept) break;
+  // The best kScanKept minima, then up to kScanKept more that are each a
+  // pose distinct from every one kept (SamePose).
+  size_t next = 0;
+  for (; next < hits.size() && out.size() < kScanKept; ++next) {
+    const Hit& h = hits[next];
     const Pose4 pose{h.yaw, h.pitch, h.roll, h.f, 0.0};
     if (!WithinPrior(options, pose.ToPose())) continue;
+    const double cost = scorer.Cost(pose, cols);
+    if (std::isfinite(cost)) out.push_back({pose, cost});
+  }
+  for (const size_t best = out.size(); next < hits.size() && out.size() < best + kScanKept; ++next) {
+    const Hit& h = hits[next];
+    const Pose4 pose{h.yaw, h.pitch, h.roll, h.f, 0.0};
+    if (!WithinPrior(options, pose.ToPose()) ||
+        std::any_of(out.begin(), out.end(), [&](const Candidate& c) { return SamePose(c.pose, pose, width); }))
+      continue;
     const double cost = scorer.Cost(pose, cols);
     if (std::isfinite(cost)) out.push_back({pose, cost});
   }
@@ -645,7 +677,7 @@ Registration Register(const Skyline& skyline, const HorizonProfile& horizon, con
   // A skyline too plain for the pairs: the azimuth scanned as well.
   if (options.scan_plain_skylines && out.hypotheses < kScanBelowHypotheses) {
     const double f0 = frame.known() ? frame.KnownFocalPx() : fmin, f1 = frame.known() ? frame.KnownFocalPx() : fmax;
-    const std::vector<Candidate> scan = ScanAzimuths(scorer, lookup, coarse, options, f0, f1, tau);
+    const std::vector<Candidate> scan = ScanAzimuths(scorer, lookup, coarse, options, f0, f1, tau, width);
     out.scanned_hypotheses = static_cast<int>(scan.size());
     out.hypotheses += out.scanned_hypotheses;
     scored.insert(scored.end(), scan.begin(), scan.end());

@@ -78,8 +78,8 @@ struct RegistrationOptions {
   // gentle ridge, a skyline mostly hidden behind near trees), the azimuth is
   // also scanned: every 0.2 deg at each focal length of a narrow window of
   // opening angles (or of any window when a compass bounds the azimuths),
-  // the pitch and roll fitted to each, the best local minima scored as the
-  // pairs' hypotheses are.
+  // the pitch and roll fitted to each, the best 32 local minima and up to 32
+  // more distinct poses (the rivals) scored as the pairs' hypotheses are.
   bool scan_plain_skylines = true;
   int coarse_columns = 24;                   // Skyline columns scored per hypothesis, >= 8.
   int quick_columns = 120;                   // Skyline columns for refining candidates, >= 8.
