@@ -194,6 +194,8 @@ constexpr double kScanFocalStep = 1.02;  // focal lengths scanned over the windo
 constexpr int kScanMaxFocals = 16;        // ... at most this many (a wider window is not scanned) ...
 constexpr int kScanMaxFocalsCompass = 160;  // ... or this many where a compass bounds the azimuths
 
+bool SamePose(const Pose4& a, const Pose4& b, double width);
+
 // Hypotheses of a skyline too plain for pairs of peaks and dips: a gentle
 // ridge, or most of the skyline hidden behind near trees (a rendered view
 // with its terrain skyline 40% visible: two image extrema, no pair of them
@@ -212,7 +214,8 @@ constexpr int kScanMaxFocalsCompass = 160;  // ... or this many where a compass 
 // distinct poses, none of them a rival, and called the pose unambiguous:
 // the centre half of CG05_20050811_190000 (one image extremum, 190
 // informative columns) given a position 2 km away registered so 95.6 deg
-// off (`eval_real.py --modes ring-crop-narrow`); with them a rival fits
+// off (`eval_real.py --modes ring-crop-narrow`); with them (those of the
+// best 64 hypotheses of all, Register) a rival fits
 // within 12% and it answers no_match. AK01b_20090827 given a place 5 km
 // off without the altitude and its opening angle (`--modes
 // ring-noalt-hfov`) registered 165.4 deg off at an ambiguity of 1.40, the
@@ -222,8 +225,6 @@ constexpr int kScanMaxFocalsCompass = 160;  // ... or this many where a compass 
 // better-scoring one (unit test TheAzimuthScanKeepsDistinctPoses); the
 // distinct ones refined only when the search found no alternative among
 // the rest kept the 165.4 deg registration.
-bool SamePose(const Pose4& a, const Pose4& b, double width);
-
 std::vector<Candidate> ScanAzimuths(const Scorer& scorer, const HorizonLookup& lookup, const std::vector<Column>& cols,
                                     const RegistrationOptions& options, double fmin, double fmax, double tau_px,
                                     double width) {
