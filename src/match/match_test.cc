@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <random>
+#include <utility>
 
 #include "match/extrema.h"
 #include "match/hypothesis.h"
@@ -421,17 +422,26 @@ TEST(Register, ShortGapsInTheSkylineDoNotHideItsPeaks) {
 // (behind near trees): no peak or dip to pair. With the opening angle
 // known (or a compass bounding the azimuths), the azimuth scan finds the
 // pose; without the scan, or in a wide window with no compass, nothing.
-TEST(Register, TheAzimuthScanRegistersAPlainSkyline) {
+// The horizon elevation(azimuth) (degrees, every 0.25 deg) and its skyline
+// seen from kPlainViewPose at an opening angle of 50 deg over the left 410
+// of 1024 columns, the rest hidden (behind near trees).
+const CameraPose kPlainViewPose{116.5, -4.0, 4.0};
+template <typename Elevation>
+std::pair<HorizonProfile, Skyline> PlainView(const Elevation& elevation) {
   HorizonProfile p = SyntheticHorizon(0.25, true);
-  for (int i = 0; i < p.size(); ++i) {
-    const double az = p.AzimuthDeg(i), a = DegToRad(az);  // and two cliffs rising to the east in view: no peak, no dip
-    p.elevation_deg[i] = 1.0 + 1.8 * std::sin(3 * a + 0.3) + 0.9 * std::sin(7 * a + 1.0) +
-                         0.5 / (1.0 + std::exp(-(az - 97.0) / 0.3)) + 0.3 / (1.0 + std::exp(-(az - 106.0) / 0.3));
-  }
-  const CameraPose pose{116.5, -4.0, 4.0};
-  const auto k = CameraIntrinsics::FromHfov(1024, 683, 50.0);
-  Skyline s = SkylineOf(p, pose, k);
+  for (int i = 0; i < p.size(); ++i) p.elevation_deg[i] = elevation(p.AzimuthDeg(i));
+  Skyline s = SkylineOf(p, kPlainViewPose, CameraIntrinsics::FromHfov(1024, 683, 50.0));
   for (int c = 410; c < s.width; ++c) s.y[c] = NAN, s.confidence[c] = 0.0;
+  return {std::move(p), std::move(s)};
+}
+
+TEST(Register, TheAzimuthScanRegistersAPlainSkyline) {
+  const auto [p, s] = PlainView([](double az) {  // and two cliffs rising to the east in view: no peak, no dip
+    const double a = DegToRad(az);
+    return 1.0 + 1.8 * std::sin(3 * a + 0.3) + 0.9 * std::sin(7 * a + 1.0) +
+           0.5 / (1.0 + std::exp(-(az - 97.0) / 0.3)) + 0.3 / (1.0 + std::exp(-(az - 106.0) / 0.3));
+  });
+  const CameraPose pose = kPlainViewPose;
   RegistrationOptions known;
   known.min_hfov_deg = 50.0 * 0.97, known.max_hfov_deg = 50.0 * 1.03;
   const Registration r = Register(s, p, known);
@@ -469,15 +479,10 @@ TEST(Register, TheAzimuthScanRegistersAPlainSkyline) {
 // elsewhere is the rival, and the pose is still found (distinct minima
 // alone dropped the start nearest to it).
 TEST(Register, TheAzimuthScanKeepsDistinctPoses) {
-  HorizonProfile p = SyntheticHorizon(0.25, true);
-  for (int i = 0; i < p.size(); ++i) {
-    const double az = p.AzimuthDeg(i);
-    p.elevation_deg[i] = 1.0 + 0.5 / (1.0 + std::exp(-(az - 97.0) / 0.3)) + 0.06 * std::sin(2.0 * kPi * az / 0.7);
-  }
-  const CameraPose pose{116.5, -4.0, 4.0};
-  const auto k = CameraIntrinsics::FromHfov(1024, 683, 50.0);
-  Skyline s = SkylineOf(p, pose, k);
-  for (int c = 410; c < s.width; ++c) s.y[c] = NAN, s.confidence[c] = 0.0;
+  const auto [p, s] = PlainView([](double az) {
+    return 1.0 + 0.5 / (1.0 + std::exp(-(az - 97.0) / 0.3)) + 0.06 * std::sin(2.0 * kPi * az / 0.7);
+  });
+  const CameraPose pose = kPlainViewPose;
   RegistrationOptions window;
   window.min_hfov_deg = 50.0 * 0.88, window.max_hfov_deg = 50.0 * 1.12;
   const Registration r = Register(s, p, window);
