@@ -214,9 +214,9 @@ bool SamePose(const Pose4& a, const Pose4& b, double width);
 // distinct poses, none of them a rival, and called the pose unambiguous:
 // the centre half of CG05_20050811_190000 (one image extremum, 190
 // informative columns) given a position 2 km away registered so 95.6 deg
-// off (`eval_real.py --modes ring-crop-narrow`); with them (those of the
-// best 64 hypotheses of all, Register) a rival fits
-// within 12% and it answers no_match. AK01b_20090827 given a place 5 km
+// off (`eval_real.py --modes ring-crop-narrow`); with them (those among
+// the best 64 hypotheses of all, Register) a rival fits within 12% and it
+// answers no_match. AK01b_20090827 given a place 5 km
 // off without the altitude and its opening angle (`--modes
 // ring-noalt-hfov`) registered 165.4 deg off at an ambiguity of 1.40, the
 // gate; with them 1.14. Measured and not kept: the distinct ones only
@@ -310,18 +310,11 @@ std::vector<Candidate> ScanAzimuths(const Scorer& scorer, const HorizonLookup& l
   std::vector<Candidate> out;
   // The best kScanKept minima, then up to kScanKept more that are each a
   // pose distinct from every one kept (SamePose).
-  size_t next = 0;
-  for (; next < hits.size() && out.size() < kScanKept; ++next) {
-    const Hit& h = hits[next];
+  for (const Hit& h : hits) {
+    if (out.size() >= 2 * kScanKept) break;
     const Pose4 pose{h.yaw, h.pitch, h.roll, h.f, 0.0};
     if (!WithinPrior(options, pose.ToPose())) continue;
-    const double cost = scorer.Cost(pose, cols);
-    if (std::isfinite(cost)) out.push_back({pose, cost});
-  }
-  for (const size_t best = out.size(); next < hits.size() && out.size() < best + kScanKept; ++next) {
-    const Hit& h = hits[next];
-    const Pose4 pose{h.yaw, h.pitch, h.roll, h.f, 0.0};
-    if (!WithinPrior(options, pose.ToPose()) ||
+    if (out.size() >= kScanKept &&
         std::any_of(out.begin(), out.end(), [&](const Candidate& c) { return SamePose(c.pose, pose, width); }))
       continue;
     const double cost = scorer.Cost(pose, cols);
