@@ -9,6 +9,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "skyline/refine.h"
 #include "skyline/skyline.h"
 #include "testing/shared_data.h"
 
@@ -30,6 +31,31 @@ void BM_Skyline(benchmark::State& state) {
   for (auto _ : state) benchmark::DoNotOptimize(ExtractSkyline(img, SkylineOptions{}));
 }
 BENCHMARK(BM_Skyline)->Args({1024, 683})->Args({4000, 3000})->Unit(benchmark::kMillisecond);
+
+// The noise estimate every photo up to 1.5 times the extraction's width
+// pays (skyline_detail::NoiseSigma; wider ones are read as block means) ...
+void BM_NoiseSigma(benchmark::State& state) {
+  const cv::Mat img = LoadScene(static_cast<int>(state.range(0)), static_cast<int>(state.range(1)));
+  if (img.empty()) return state.SkipWithError("../shared is absent");
+  for (auto _ : state) benchmark::DoNotOptimize(skyline_detail::NoiseSigma(img));
+}
+BENCHMARK(BM_NoiseSigma)->Args({1024, 683})->Unit(benchmark::kMillisecond);
+
+// ... and the whole extraction of a noisy frame (sigma 6 per channel), which
+// is smoothed first.
+void BM_SkylineNoisy(benchmark::State& state) {
+  cv::setNumThreads(1);
+  cv::Mat img = LoadScene(static_cast<int>(state.range(0)), static_cast<int>(state.range(1)));
+  if (img.empty()) return state.SkipWithError("../shared is absent");
+  cv::Mat noise(img.size(), CV_16SC3), wide;
+  cv::RNG rng(7);
+  rng.fill(noise, cv::RNG::NORMAL, 0.0, 6.0);
+  img.convertTo(wide, CV_16SC3);
+  wide += noise;
+  wide.convertTo(img, CV_8UC3);
+  for (auto _ : state) benchmark::DoNotOptimize(ExtractSkyline(img, SkylineOptions{}));
+}
+BENCHMARK(BM_SkylineNoisy)->Args({1024, 683})->Unit(benchmark::kMillisecond);
 
 }  // namespace
 }  // namespace horizonreg

@@ -457,6 +457,42 @@ std::vector<uint8_t> FindOccluders(const std::vector<ColumnFit>& fits, int image
   return occluded;
 }
 
+double NoiseSigma(const cv::Mat& bgr) {
+  if (bgr.type() != CV_8UC3 || bgr.rows < 3 || bgr.cols < 3) return 0.0;
+  const int w = bgr.cols;
+  std::vector<int> luma(3 * static_cast<size_t>(w));
+  auto fill = [&](int r, int* out) {
+    const cv::Vec3b* p = bgr.ptr<cv::Vec3b>(r);
+    for (int c = 0; c < w; ++c) out[c] = 29 * p[c][0] + 150 * p[c][1] + 77 * p[c][2];  // luma * 256
+  };
+  // |convolution| / 256 in whole luma units: at most 36 * 255.
+  std::vector<int> hist(36 * 255 + 1, 0);
+  long n = 0;
+  for (int r = 1; r + 1 < bgr.rows; r += 2) {
+    int* a = luma.data();
+    int* b = a + w;
+    int* c = b + w;
+    fill(r - 1, a), fill(r, b), fill(r + 1, c);
+    for (int x = 1; x + 1 < w; ++x) {
+      const int v =
+          (a[x - 1] - 2 * a[x] + a[x + 1]) - 2 * (b[x - 1] - 2 * b[x] + b[x + 1]) + (c[x - 1] - 2 * c[x] + c[x + 1]);
+      ++hist[std::min(36 * 255, (std::abs(v) + 128) >> 8)];
+      ++n;
+    }
+  }
+  if (n == 0) return 0.0;
+  // The median, interpolated within its bin (the values are whole numbers).
+  long below = 0;
+  for (size_t k = 0; k < hist.size(); ++k) {
+    if (below + hist[k] >= (n + 1) / 2) {
+      const double within = hist[k] ? (0.5 * n - below) / hist[k] : 0.5;
+      return std::max(0.0, k - 0.5 + within) / (0.6745 * 6.0);
+    }
+    below += hist[k];
+  }
+  return 0.0;
+}
+
 std::vector<uint8_t> GridRunColumns(const std::vector<double>& y, int grid, double slack, int min_run) {
   const int w = static_cast<int>(y.size());
   std::vector<uint8_t> out(w, 0);

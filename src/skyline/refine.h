@@ -244,4 +244,11 @@ std::vector<uint8_t> GridRunColumns(const std::vector<double>& y, int grid, doub
 // elsewhere.
 std::vector<uint8_t> IsolatedRunColumns(const std::vector<double>& y, int max_run, int min_gap);
 
+// The standard deviation of an image's pixel noise, in 8-bit luma units
+// (Immerkaer 1996, robustly): the luma convolved with the difference of two
+// Laplacians (which a locally linear surface cancels; unit Gaussian noise
+// comes out with deviation 6), the median of its magnitude over every
+// second row, over 0.6745 * 6. Texture and edges lie in the upper tail.
+double NoiseSigma(const cv::Mat& bgr);
+
 }  // namespace horizonreg::skyline_detail

@@ -368,5 +368,50 @@ TEST(IsolatedRunColumns, MarksShortStretchesBetweenLongGaps) {
   EXPECT_TRUE(IsolatedRunColumns({}, 8, 10).empty());
 }
 
+// A sky's smooth gradient over a darker, smoothly shaded ground, 8-bit,
+// with Gaussian noise of `sigma` levels per channel (seeded).
+cv::Mat GradientWithNoise(double sigma) {
+  cv::Mat img(300, 400, CV_8UC3);
+  for (int y = 0; y < img.rows; ++y)
+    for (int x = 0; x < img.cols; ++x)
+      img.at<cv::Vec3b>(y, x) = y < 150 ? cv::Vec3b(200 - y / 5, 160 - y / 6, 120 - y / 8)
+                                        : cv::Vec3b(60 + x / 10, 90 + x / 12, 70 + (y - 150) / 6);
+  if (sigma > 0.0) {
+    cv::Mat noise(img.size(), CV_16SC3), wide;
+    cv::RNG rng(11);
+    rng.fill(noise, cv::RNG::NORMAL, 0.0, sigma);
+    img.convertTo(wide, CV_16SC3);
+    wide += noise;
+    wide.convertTo(img, CV_8UC3);
+  }
+  return img;
+}
+
+TEST(NoiseSigma, ReadsThePixelNoiseNotTheScenesGradientsOrEdges) {
+  // Noise of sigma s per channel is s * 0.668 in luma (0.114, 0.587, 0.299).
+  EXPECT_LT(NoiseSigma(GradientWithNoise(0.0)), 0.5);
+  for (double s : {3.0, 6.0, 10.0}) {
+    const double got = NoiseSigma(GradientWithNoise(s));
+    EXPECT_NEAR(got, 0.668 * s, 0.12 * 0.668 * s) << "sigma " << s;
+  }
+}
+
+TEST(NoiseSigma, TextureAloneReadsAsLittleNoise) {
+  // Blocks of random shade 8 px across (rock and snow): edges on 1 in 4
+  // rows and columns, the rest flat.
+  cv::Mat img(240, 320, CV_8UC3);
+  cv::RNG rng(3);
+  cv::Mat cells(30, 40, CV_8U);
+  rng.fill(cells, cv::RNG::UNIFORM, 40, 220);
+  for (int y = 0; y < img.rows; ++y)
+    for (int x = 0; x < img.cols; ++x) {
+      const uint8_t v = cells.at<uint8_t>(y / 8, x / 8);
+      img.at<cv::Vec3b>(y, x) = cv::Vec3b(v, v, v);
+    }
+  EXPECT_LT(NoiseSigma(img), 1.0);
+  EXPECT_EQ(NoiseSigma(cv::Mat()), 0.0);
+  EXPECT_EQ(NoiseSigma(cv::Mat(2, 2, CV_8UC3, cv::Scalar(1, 2, 3))), 0.0);
+}
+
 }  // namespace
 }  // namespace horizonreg::skyline_detail
