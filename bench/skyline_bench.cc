@@ -41,13 +41,6 @@ void BM_NoiseSigma(benchmark::State& state) {
 }
 BENCHMARK(BM_NoiseSigma)->Args({1024, 683})->Unit(benchmark::kMillisecond);
 
-void BM_EdgeBlurSigma(benchmark::State& state) {
-  const cv::Mat img = LoadScene(static_cast<int>(state.range(0)), static_cast<int>(state.range(1)));
-  if (img.empty()) return state.SkipWithError("../shared is absent");
-  for (auto _ : state) benchmark::DoNotOptimize(skyline_detail::EdgeBlurSigma(img));
-}
-BENCHMARK(BM_EdgeBlurSigma)->Args({1024, 683})->Unit(benchmark::kMillisecond);
-
 // ... and the whole extraction of a noisy frame (sigma 6 per channel), which
 // is smoothed first.
 void BM_SkylineNoisy(benchmark::State& state) {

@@ -2,7 +2,6 @@
 #include "skyline/refine.h"
 
 #include <algorithm>
-#include <opencv2/imgproc.hpp>
 #include <utility>
 
 namespace horizonreg::skyline_detail {
@@ -492,49 +491,6 @@ double NoiseSigma(const cv::Mat& bgr) {
     below += hist[k];
   }
   return 0.0;
-}
-
-double EdgeBlurSigma(const cv::Mat& bgr) {
-  if (bgr.type() != CV_8UC3 || bgr.rows < 16 || bgr.cols < 16) return 0.0;
-  cv::Mat luma, soft, g0, g1;
-  cv::cvtColor(bgr, luma, cv::COLOR_BGR2GRAY);
-  cv::GaussianBlur(luma, soft, cv::Size(0, 0), 1.0);  // 8-bit: rounding is far below a strong edge's gradient
-  // The vertical gradient only: a skyline is mostly a horizontal edge.
-  cv::Sobel(luma, g0, CV_16S, 0, 1, 3);
-  cv::Sobel(soft, g1, CV_16S, 0, 1, 3);
-  // The threshold: the 99.5th percentile of |gradient| (at most 4 * 255),
-  // 2 px from the border (the Sobel reflects there).
-  const int r0 = 2, r1 = bgr.rows - 2, c0 = 2, c1 = bgr.cols - 2;
-  std::vector<int> hist(1021, 0);
-  for (int r = r0; r < r1; ++r) {
-    const int16_t* p = g0.ptr<int16_t>(r);
-    for (int c = c0; c < c1; ++c) ++hist[std::abs(p[c])];
-  }
-  const long n = static_cast<long>(r1 - r0) * (c1 - c0);
-  long above = 0;
-  int threshold = 1020;
-  while (threshold > 0 && above + hist[threshold] <= n / 200) above += hist[threshold--];
-  if (threshold < 4) return 0.0;  // no edges
-  // The ratio of the local (3 x 3) peaks at every strong pixel.
-  std::vector<double> ratios;
-  for (int r = r0; r < r1; ++r) {
-    const int16_t* p = g0.ptr<int16_t>(r);
-    for (int c = c0; c < c1; ++c) {
-      if (std::abs(p[c]) < threshold) continue;
-      int m0 = 0, m1 = 0;
-      for (int dr = -1; dr <= 1; ++dr) {
-        const int16_t* a0 = g0.ptr<int16_t>(r + dr);
-        const int16_t* a1 = g1.ptr<int16_t>(r + dr);
-        for (int dc = -1; dc <= 1; ++dc)
-          m0 = std::max(m0, std::abs(static_cast<int>(a0[c + dc]))),
-          m1 = std::max(m1, std::abs(static_cast<int>(a1[c + dc])));
-      }
-      ratios.push_back(static_cast<double>(m1) / m0);
-    }
-  }
-  if (ratios.empty()) return 0.0;
-  const double q = std::min(0.999, Quantile(ratios, 0.5));
-  return q / std::sqrt(1.0 - q * q);
 }
 
 std::vector<uint8_t> GridRunColumns(const std::vector<double>& y, int grid, double slack, int min_run) {

@@ -251,12 +251,4 @@ std::vector<uint8_t> IsolatedRunColumns(const std::vector<double>& y, int max_ru
 // second row, over 0.6745 * 6. Texture and edges lie in the upper tail.
 double NoiseSigma(const cv::Mat& bgr);
 
-// How soft an image's sharpest edges are, as the sigma (px) of a Gaussian
-// blur: at its strongest edges (the top 0.5% of the luma's Sobel gradient)
-// a further blur of 1 px lowers the gradient's local peak to s / sqrt(s^2
-// + 1) of it; the median of that ratio read back as s. Sobel's own
-// smoothing included: a sharp photo reads 0.6-0.9, one blurred by 1.5 px
-// about 1.6. 0 for an image too small or without edges.
-double EdgeBlurSigma(const cv::Mat& bgr);
-
 }  // namespace horizonreg::skyline_detail

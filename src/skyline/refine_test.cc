@@ -413,35 +413,5 @@ TEST(NoiseSigma, TextureAloneReadsAsLittleNoise) {
   EXPECT_EQ(NoiseSigma(cv::Mat(2, 2, CV_8UC3, cv::Scalar(1, 2, 3))), 0.0);
 }
 
-// Sky over terrain whose boundary steps between rows at random (a jagged
-// ridge), sharp or blurred by `blur` px.
-cv::Mat RidgeScene(double blur) {
-  cv::Mat img(300, 400, CV_8UC3);
-  cv::RNG rng(5);
-  int row = 150;
-  for (int x = 0; x < img.cols; ++x) {
-    if (x % 6 == 0) row = std::clamp(row + rng.uniform(-8, 9), 60, 240);
-    for (int y = 0; y < img.rows; ++y)
-      img.at<cv::Vec3b>(y, x) = y < row ? cv::Vec3b(210, 170, 130) : cv::Vec3b(70, 90, 80);
-  }
-  if (blur > 0.0) cv::GaussianBlur(img, img, cv::Size(0, 0), blur);
-  return img;
-}
-
-TEST(EdgeBlurSigma, ReadsHowSoftTheStrongestEdgesAre) {
-  const double sharp = EdgeBlurSigma(RidgeScene(0.0));
-  EXPECT_GT(sharp, 0.3);
-  EXPECT_LT(sharp, 1.0);  // a sharp photo: 0.6-0.9 (Sobel's own smoothing)
-  double last = sharp;
-  for (double b : {1.0, 1.5, 2.5}) {
-    const double got = EdgeBlurSigma(RidgeScene(b));
-    EXPECT_GT(got, last) << "blur " << b;
-    EXPECT_NEAR(got, std::hypot(b, sharp), 0.35) << "blur " << b;  // blurs add in quadrature
-    last = got;
-  }
-  EXPECT_EQ(EdgeBlurSigma(cv::Mat(100, 100, CV_8UC3, cv::Scalar(90, 120, 150))), 0.0);  // no edges
-  EXPECT_EQ(EdgeBlurSigma(cv::Mat()), 0.0);
-}
-
 }  // namespace
 }  // namespace horizonreg::skyline_detail

@@ -30,11 +30,6 @@ constexpr double kNoisySigma = 3.0;     // luma noise (of 255) from which the ph
 constexpr int kDenoiseDiameter = 5;     // ... by a bilateral filter this wide (px) ...
 constexpr double kDenoiseColour = 7.0;  // ... averaging colours within this many noise sigmas ...
 constexpr double kDenoiseSpace = 2.0;   // ... weighted by a Gaussian of this sigma (px)
-constexpr double kSoftSigma = 1.4;      // edge blur (px) from which the photo is sharpened (Sharpened) ...
-constexpr double kSharpSigma = 0.8;     // ... towards this blur of a sharp photo ...
-constexpr double kSharpenAmount = 2.0;  // ... by an unsharp mask this strong, then smoothed (kDenoiseDiameter) ...
-constexpr double kSharpenedSmoothing = 10.0;  // ... averaging colours within this distance (of 255) ...
-constexpr double kSharpenedSpace = 1.5;       // ... weighted by a Gaussian of this sigma (px)
 
 constexpr int kHistBins = 16;             // per CIELAB axis
 constexpr float kColourWeight = 0.25f;    // DP cost per misclassified pixel (edges weigh 1 per delta E)
@@ -806,32 +801,6 @@ cv::Mat Denoised(const cv::Mat& bgr) {
   return out;
 }
 
-// The photo sharpened when its edges are soft (skyline_detail::
-// EdgeBlurSigma above kSoftSigma): out of focus, behind a soft or dirty
-// lens, a webcam's small optics, or resampled smooth. The search's steps
-// are read between row means a few rows apart, and a step spread over 5-8
-// rows passes for a fade (snow taken for sky down to a sharper edge
-// lower). An unsharp mask whose blur brings the edges' to a sharp photo's
-// (kSharpSigma), then the ringing and the JPEG noise it raises smoothed
-// with edges kept (a bilateral filter of kSharpenedSmoothing; without it
-// 3-5 points fewer of the columns below). Photos as taken keep their
-// pixels: measured, the 13 real photos 0.67-1.32 (the hazy CG05 the
-// softest), the 28 rendered scenes 0.60-0.86; their copies blurred by 1,
-// 1.5 and 2.5 px, 1.11-1.77, 1.48-2.26 and 2.34-3.36. Those copies: 76.3%
-// -> 76.4%, 71.9% -> 78.4% and 52.5% -> 69.7% of the traced columns
-// within 2 px (80.6% as taken); registered within 0.5 deg 9 -> 9, 7 -> 8
-// (scripts/eval_real.py photometric: 8 -> 10) and 8 -> 8 of 13, no false
-// registration (nor among the blurred copies' 91 wrong probes).
-cv::Mat Sharpened(const cv::Mat& bgr) {
-  const double sigma = skyline_detail::EdgeBlurSigma(bgr);
-  if (!(sigma > kSoftSigma)) return bgr;
-  cv::Mat soft, out;
-  cv::GaussianBlur(bgr, soft, cv::Size(0, 0), std::sqrt(std::max(sigma * sigma - kSharpSigma * kSharpSigma, 0.25)));
-  cv::addWeighted(bgr, 1.0 + kSharpenAmount, soft, -kSharpenAmount, 0.0, out);
-  cv::bilateralFilter(out, soft, kDenoiseDiameter, kSharpenedSmoothing, kSharpenedSpace);
-  return soft;
-}
-
 // A skyline's second candidates cleared when none is left (no y_alt: one
 // candidate per column).
 void DropEmptyAlt(Skyline& s) {
@@ -1216,8 +1185,8 @@ Skyline ExtractSkyline(const cv::Mat& image, const SkylineOptions& options) {
   // A photo wider than 1.5 times the extraction's width is read as means of
   // blocks of k x k pixels (ExtractionReduction), whose noise is that over k
   // (sensor noise of sigma 6 per channel: luma 4 at full size, 2 in 2 x 2
-  // means): only a photo read pixel for pixel is denoised or sharpened.
-  if (ExtractionReduction(bgr.cols, bgr.rows) == 1) bgr = Sharpened(Denoised(bgr));
+  // means): only a photo read pixel for pixel is smoothed.
+  if (ExtractionReduction(bgr.cols, bgr.rows) == 1) bgr = Denoised(bgr);
   // A timestamp strip along the top or bottom edge is not scene: the
   // skyline is read between them, in the photo's rows.
   const int top = OverlayBandRows(bgr, true), bottom = OverlayBandRows(bgr, false);

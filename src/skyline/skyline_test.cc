@@ -230,26 +230,6 @@ TEST(ExtractSkyline, SensorNoiseOverAFaintRidgeIsSmoothedAwayFirst) {
   EXPECT_GE(WithinPx(s, truth, 2.0), 0.95 * 1024);
 }
 
-TEST(ExtractSkyline, ASoftPhotoIsSharpenedFirst) {
-  // A ridge out of focus or behind a soft lens (a Gaussian blur of 2.5
-  // px): its boundary is read after an unsharp mask
-  // (skyline_detail::EdgeBlurSigma 1.9, over 1.4).
-  std::vector<double> truth;
-  cv::Mat img = SyntheticScene(1024, 683, truth);
-  for (int y = 0; y < img.rows; ++y)
-    for (int x = 0; x < img.cols; ++x)
-      if (y + 0.5 >= truth[x]) img.at<cv::Vec3b>(y, x) = cv::Vec3b(150, 150, 145);
-  cv::GaussianBlur(img, img, cv::Size(0, 0), 2.5);
-  AddNoise(img, 1.0);
-  const Skyline s = ExtractSkyline(img, SkylineOptions{});
-  int given = 0;
-  for (int x = 0; x < 1024; ++x) given += std::isfinite(s.y[x]);
-  // Measured 1000 of 1024 columns within 2 px (359 within 1); read as
-  // blurred, 623 (5).
-  EXPECT_EQ(given, 1024);
-  EXPECT_GE(WithinPx(s, truth, 2.0), 0.95 * 1024);
-}
-
 // A thin strip of smooth sky over textured snow (a camera pitched down, as
 // at many time-lapse stations): the sky's noise is the strip's, not the
 // snow's texture below it, and the boundary keeps its columns.
