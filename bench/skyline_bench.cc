@@ -11,6 +11,7 @@
 
 #include "skyline/refine.h"
 #include "skyline/skyline.h"
+#include "testing/pixel_noise.h"
 #include "testing/shared_data.h"
 
 namespace horizonreg {
@@ -47,12 +48,7 @@ void BM_SkylineNoisy(benchmark::State& state) {
   cv::setNumThreads(1);
   cv::Mat img = LoadScene(static_cast<int>(state.range(0)), static_cast<int>(state.range(1)));
   if (img.empty()) return state.SkipWithError("../shared is absent");
-  cv::Mat noise(img.size(), CV_16SC3), wide;
-  cv::RNG rng(7);
-  rng.fill(noise, cv::RNG::NORMAL, 0.0, 6.0);
-  img.convertTo(wide, CV_16SC3);
-  wide += noise;
-  wide.convertTo(img, CV_8UC3);
+  testing::AddPixelNoise(img, 6.0);
   for (auto _ : state) benchmark::DoNotOptimize(ExtractSkyline(img, SkylineOptions{}));
 }
 BENCHMARK(BM_SkylineNoisy)->Args({1024, 683})->Unit(benchmark::kMillisecond);

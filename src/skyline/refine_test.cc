@@ -9,6 +9,8 @@
 #include <cmath>
 #include <tuple>
 
+#include "testing/pixel_noise.h"
+
 namespace horizonreg::skyline_detail {
 namespace {
 
@@ -376,14 +378,7 @@ cv::Mat GradientWithNoise(double sigma) {
     for (int x = 0; x < img.cols; ++x)
       img.at<cv::Vec3b>(y, x) = y < 150 ? cv::Vec3b(200 - y / 5, 160 - y / 6, 120 - y / 8)
                                         : cv::Vec3b(60 + x / 10, 90 + x / 12, 70 + (y - 150) / 6);
-  if (sigma > 0.0) {
-    cv::Mat noise(img.size(), CV_16SC3), wide;
-    cv::RNG rng(11);
-    rng.fill(noise, cv::RNG::NORMAL, 0.0, sigma);
-    img.convertTo(wide, CV_16SC3);
-    wide += noise;
-    wide.convertTo(img, CV_8UC3);
-  }
+  if (sigma > 0.0) testing::AddPixelNoise(img, sigma, 11);
   return img;
 }
 

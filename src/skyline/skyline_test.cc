@@ -7,6 +7,7 @@
 
 #include <opencv2/imgproc.hpp>
 
+#include "testing/pixel_noise.h"
 #include "util/errors.h"
 
 namespace horizonreg {
@@ -28,14 +29,7 @@ cv::Mat SyntheticScene(int w, int h, std::vector<double>& truth) {
 
 // Gaussian pixel noise of `sigma` levels per channel (seeded: the same
 // noise every run).
-void AddNoise(cv::Mat& img, double sigma) {
-  cv::Mat noise(img.size(), CV_16SC3), wide;
-  cv::RNG rng(7);
-  rng.fill(noise, cv::RNG::NORMAL, 0.0, sigma);
-  img.convertTo(wide, CV_16SC3);
-  wide += noise;
-  wide.convertTo(img, CV_8UC3);
-}
+void AddNoise(cv::Mat& img, double sigma) { testing::AddPixelNoise(img, sigma); }
 
 // Columns whose boundary lies within `px` of the scene's true row.
 int WithinPx(const Skyline& s, const std::vector<double>& truth, double px) {
