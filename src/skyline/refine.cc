@@ -468,17 +468,21 @@ double NoiseSigma(const cv::Mat& bgr) {
   // |convolution| / 256 in whole luma units: at most 36 * 255.
   std::vector<int> hist(36 * 255 + 1, 0);
   long n = 0;
+  // Rows r - 1, r, r + 1 in a, b, c; the next triple's first row is this
+  // one's last, so only two rows are converted per step.
+  int* a = luma.data();
+  int* b = a + w;
+  int* c = b + w;
+  fill(0, a);
   for (int r = 1; r + 1 < bgr.rows; r += 2) {
-    int* a = luma.data();
-    int* b = a + w;
-    int* c = b + w;
-    fill(r - 1, a), fill(r, b), fill(r + 1, c);
+    fill(r, b), fill(r + 1, c);
     for (int x = 1; x + 1 < w; ++x) {
       const int v =
           (a[x - 1] - 2 * a[x] + a[x + 1]) - 2 * (b[x - 1] - 2 * b[x] + b[x + 1]) + (c[x - 1] - 2 * c[x] + c[x + 1]);
       ++hist[std::min(36 * 255, (std::abs(v) + 128) >> 8)];
       ++n;
     }
+    std::swap(a, c);
   }
   if (n == 0) return 0.0;
   // The median, interpolated within its bin (the values are whole numbers).
