@@ -139,6 +139,10 @@ Modes (each a per-photo table and a summary):
             (over all changes: --floors photometric-skyline=W, default 0)
   wrong-photometric  (not in the default set; minutes) the wrong probes on
             every photometric copy
+  ring-noise, ring-blur, ring-dark, ... (ring-KEY for each photometric
+            change; not in the default set; minutes each) the ring's 468
+            wrong positions on that change's copies: registered and false
+            (> 1 deg; --floors ring-KEY=N, a ceiling, default 0)
   jpeg30-skyline  (not in the default set; seconds) the skyline of the
             quality-30 copies against the hand trace, as skyline (--floors
             jpeg30-skyline=F)
@@ -791,6 +795,34 @@ def photometric_modes(binary, shared, photos, modes, tmpdir, pool, jobs, floors,
             jobs, tmpdir), runs)]
         if not report_wrong("wrong position (2-10 km away) or another region's DEM, every photometric change", out):
             ok = ok and not check
+    for key, what, _ in PHOTOMETRIC:
+        if "ring-" + key not in modes:
+            continue
+        probes = [(p, b, dist) + offset_position(p[1]["lat"], p[1]["lon"], b, dist)
+                  for p in photos for b, dist in RING_OFFSETS]
+        out = register_many(binary, shared, [
+            dict(photo_dir=d, name=name, truth=t, extra=[], lat=lat, lon=lon, image=copies[(name, key)])
+            for (name, t, d), b, dist, lat, lon in probes], jobs, tmpdir)
+        n_reg, false, errs = 0, [], []
+        for ((name, t, _), b, dist, _, _), r in zip(probes, out):
+            if r.get("status") == "error":
+                errs.append(f"{name} {b}/{dist // 1000}: {r.get('message')}")
+            if r.get("status") != "registered":
+                continue
+            n_reg += 1
+            err = pose_off_deg(errors(r, t))
+            print(f"  registered: {name} {b}/{dist // 1000}: {err:.2f} deg off")
+            if err > FALSE_DEG:
+                false.append(f"{name} {b}/{dist // 1000}: {err:.1f}")
+        print(f"\n== a ring of wrong positions (12 bearings at 2, 3 and 5 km), {what} ==")
+        for f in false + errs:
+            print("  " + f)
+        print(f"ring probes: {len(probes)}; registered: {n_reg} (none should); false (> 1 deg): {len(false)}; "
+              f"errors: {len(errs)}")
+        if check and (len(false) > floors.get("ring-" + key, 0) or errs):
+            print(f"FAIL: --modes ring-{key}: {len(false)} false registrations (at most "
+                  f"{floors.get('ring-' + key, 0):.0f}) or errors")
+            ok = False
     return ok
 
 
@@ -1184,7 +1216,8 @@ def main():
         if check and (false_runs or errs):
             print("FAIL: a perturbed run registered falsely or failed")
             failed = True
-    if any(m in modes for m in ("photometric", "wrong-photometric")):
+    if any(m in modes for m in ("photometric", "wrong-photometric")) or any(
+            "ring-" + key in modes for key, _, _ in PHOTOMETRIC):
         if not photometric_modes(binary, shared, photos, modes, tmpdir, pool, jobs, floors, check):
             failed = True
     if any(m in modes for m in ("stations", "wrong-stations", "ring-stations")):

@@ -31,6 +31,9 @@ void PositionCheckOptions::Check() const {
     ThrowField("PositionCheckOptions::max_cost_ratio_ridges", max_cost_ratio_ridges, "max_cost_ratio <= ratio < 1");
   if (!(wide_radius_ridges_m >= 0.0))
     ThrowField("PositionCheckOptions::wide_radius_ridges_m", wide_radius_ridges_m, ">= 0");
+  if (!(lens_departure >= 0.0)) ThrowField("PositionCheckOptions::lens_departure", lens_departure, ">= 0");
+  if (!(lens_departure_from >= 0.0 && lens_departure_full > lens_departure_from))
+    ThrowField("PositionCheckOptions::lens_departure_full", lens_departure_full, "> lens_departure_from >= 0");
   if (!(min_offset_m >= 0.0)) ThrowField("PositionCheckOptions::min_offset_m", min_offset_m, ">= 0");
   if (!(wide_trigger >= -1.0 && wide_trigger <= 1.0))
     ThrowField("PositionCheckOptions::wide_trigger", wide_trigger, "in [-1, 1] (-1: never)");
@@ -38,6 +41,13 @@ void PositionCheckOptions::Check() const {
   if (!(wide_radius_m >= 0.0)) ThrowField("PositionCheckOptions::wide_radius_m", wide_radius_m, ">= 0 (0: none)");
   if (!(view_margin_deg >= 0.0 && view_margin_deg <= 180.0))
     ThrowField("PositionCheckOptions::view_margin_deg", view_margin_deg, "in [0, 180]");
+}
+
+double PositionCheckOptions::MaxCostRatio() const {
+  if (ridges_decided) return max_cost_ratio_ridges;
+  const double w =
+      std::clamp((lens_departure - lens_departure_from) / (lens_departure_full - lens_departure_from), 0.0, 1.0);
+  return max_cost_ratio + w * (max_cost_ratio_ridges - max_cost_ratio);
 }
 
 double PositionCheck::BearingDeg() const {
@@ -91,8 +101,9 @@ PositionCheck CheckPositionConsistency(const Site& site, const HorizonProfile& h
                                        const PositionCheckOptions& co, ThreadPool* pool) {
   co.Check();
   const auto t0 = std::chrono::steady_clock::now();
-  const double max_cost_ratio = co.ridges_decided ? co.max_cost_ratio_ridges : co.max_cost_ratio;
-  const double wide_radius = co.ridges_decided ? std::max(co.wide_radius_m, co.wide_radius_ridges_m) : co.wide_radius_m;
+  const bool strict = co.ridges_decided || co.lens_departure > co.lens_departure_from;
+  const double max_cost_ratio = co.MaxCostRatio();
+  const double wide_radius = strict ? std::max(co.wide_radius_m, co.wide_radius_ridges_m) : co.wide_radius_m;
   PositionCheck out;
   auto finish = [&] {
     out.ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
@@ -318,12 +329,18 @@ PositionCheck CheckPositionConsistency(const Site& site, const HorizonProfile& h
   out.best_pose = center.pose;
   if (refused()) {
     out.consistent = false;
-    out.only_ridges_limit = !(center.cost < co.max_cost_ratio * given.cost);
+    const bool only_strict = !(center.cost < co.max_cost_ratio * given.cost);
+    // The ridges' limit doubts the pose; the lens's names the position.
+    out.only_ridges_limit = only_strict && co.ridges_decided;
+    out.only_lens_limit = only_strict && !co.ridges_decided;
     std::ostringstream m;
     m << std::fixed << std::setprecision(1) << "the skyline fits clearly better from " << out.OffsetM() / 1000.0
       << " km away at bearing " << std::setprecision(0) << out.BearingDeg() << " deg (cost ratio "
       << std::setprecision(2) << out.cost_ratio << "): the given camera position looks wrong";
-    if (out.only_ridges_limit)
+    if (out.only_lens_limit)
+      m << " (the opening angle fitted here departs from the EXIF's, so its position must fit within "
+        << std::setprecision(2) << max_cost_ratio << ")";
+    else if (out.only_ridges_limit)
       m << ", or the pose the inner ridges chose is (its position must fit within " << std::setprecision(2)
         << max_cost_ratio << ")";
     out.message = m.str();

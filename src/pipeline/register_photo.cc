@@ -127,14 +127,23 @@ std::string PhotoHfovWindow(const PhotoOptions& po, int width, int height, doubl
     std::tie(min_deg, max_deg) = *po.hfov_range_deg;
     return "--hfov-range";
   }
-  if (po.exif.focal_35mm) {
-    const Frame35mm frame = PhotoFrame(po, width, height);
-    const double h = HfovFromFocal35mm(*po.exif.focal_35mm, width, frame);
-    min_deg = std::max(1.0, h * 0.9), max_deg = std::min(169.0, h * 1.1);
+  if (const std::optional<double> h = PhotoExifHfovDeg(po, width, height)) {
+    min_deg = std::max(1.0, *h * 0.9), max_deg = std::min(169.0, *h * 1.1);
     return std::string(po.exif.focal_35mm_from_crop_factor ? "exif-crop-factor" : "exif") +
-           (frame.cropped ? "-cropped" : "");
+           (PhotoFrame(po, width, height).cropped ? "-cropped" : "");
   }
   return "default";
+}
+
+std::optional<double> PhotoExifHfovDeg(const PhotoOptions& po, int width, int height) {
+  if (po.hfov_deg || po.hfov_range_deg || !po.exif.focal_35mm) return std::nullopt;
+  return HfovFromFocal35mm(*po.exif.focal_35mm, width, PhotoFrame(po, width, height));
+}
+
+double LensDepartureFromExif(const PhotoOptions& po, const Registration& r, int width, int height) {
+  if (po.camera || !(r.focal_px > 0.0)) return 0.0;
+  const std::optional<double> exif = PhotoExifHfovDeg(po, width, height);
+  return exif ? std::abs(HfovFromFocalDeg(r.focal_px, width) / *exif - 1.0) : 0.0;
 }
 
 RegistrationOptions PhotoRegistrationOptions(const Site& site, const PhotoOptions& po, int width, int height,
@@ -311,6 +320,7 @@ PhotoRegistration RegisterPhoto(const Site& site, const cv::Mat& image_in, const
   if (po.check_position && r.registered) {
     PositionCheckOptions co = *po.check_position;
     co.ridges_decided = out.ridge_check && !out.ridge_check->RuledOut().empty();
+    co.lens_departure = LensDepartureFromExif(po, r, image.cols, image.rows);
     out.position_check = CheckPositionConsistency(site, out.Horizon(site), out.skyline, r, ro, co, pool);
     if (!out.position_check->consistent) {
       r.registered = false;

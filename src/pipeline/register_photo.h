@@ -101,6 +101,14 @@ SkylineOptions PhotoSkylineOptions(const PhotoOptions& options);
 // "--hfov-range", "exif" ("exif-crop-factor" when the 35 mm value is the
 // lens's focal length times the body's crop factor) or "default".
 std::string PhotoHfovWindow(const PhotoOptions& options, int width, int height, double& min_deg, double& max_deg);
+// The opening angle the photo's EXIF 35 mm focal length gives at `width`
+// when that is what the search is centred on (no --hfov, no range).
+std::optional<double> PhotoExifHfovDeg(const PhotoOptions& options, int width, int height);
+// How far `r`'s opening angle departs from the EXIF's, |fitted / EXIF - 1|
+// (PositionCheckOptions::lens_departure); 0 without an EXIF focal length,
+// with an opening angle given, or with a --camera (its focal length is used
+// as given).
+double LensDepartureFromExif(const PhotoOptions& options, const Registration& r, int width, int height);
 // The registration options for a width x height photo at `site`.
 RegistrationOptions PhotoRegistrationOptions(const Site& site, const PhotoOptions& options, int width, int height,
                                              std::string* fov_source = nullptr);

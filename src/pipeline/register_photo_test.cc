@@ -316,9 +316,57 @@ TEST(PositionCheck, PassesTheTruePositionAndRefusesOneTwoKilometresOff) {
     EXPECT_TRUE(CheckPositionConsistency(wrong, wrong.horizon(), r.skyline, r.registration, options, ridges, &pool)
                     .consistent);
     ridges.ridges_decided = true;
-    EXPECT_FALSE(CheckPositionConsistency(wrong, wrong.horizon(), r.skyline, r.registration, options, ridges, &pool)
-                     .consistent);
+    const PositionCheck by_ridges =
+        CheckPositionConsistency(wrong, wrong.horizon(), r.skyline, r.registration, options, ridges, &pool);
+    EXPECT_FALSE(by_ridges.consistent);
+    EXPECT_TRUE(by_ridges.only_ridges_limit);
+    EXPECT_FALSE(by_ridges.only_lens_limit);
+    // So is one whose opening angle departs from its EXIF's by 6% or more:
+    // refused under the same limit, and the refusal names the position, not
+    // the pose. Up to 4% the plain limit holds; in between, a limit between.
+    PositionCheckOptions lens = ridges;
+    lens.ridges_decided = false;
+    lens.lens_departure = 0.07;
+    EXPECT_DOUBLE_EQ(lens.MaxCostRatio(), lens.max_cost_ratio_ridges);
+    const PositionCheck by_lens =
+        CheckPositionConsistency(wrong, wrong.horizon(), r.skyline, r.registration, options, lens, &pool);
+    EXPECT_FALSE(by_lens.consistent);
+    EXPECT_TRUE(by_lens.only_lens_limit);
+    EXPECT_FALSE(by_lens.only_ridges_limit);
+    EXPECT_NE(by_lens.message.find("EXIF"), std::string::npos);
+    lens.lens_departure = 0.03;
+    EXPECT_DOUBLE_EQ(lens.MaxCostRatio(), lens.max_cost_ratio);
+    EXPECT_TRUE(CheckPositionConsistency(wrong, wrong.horizon(), r.skyline, r.registration, options, lens, &pool)
+                    .consistent);
+    lens.lens_departure = 0.05;
+    EXPECT_NEAR(lens.MaxCostRatio(), 0.5 * (lens.max_cost_ratio + lens.max_cost_ratio_ridges), 1e-12);
+    lens.lens_departure = -0.01;
+    EXPECT_THROW(lens.Check(), InvalidArgument);
   }
+}
+
+TEST(LensDepartureFromExif, TheFittedOpeningAngleAgainstTheExifsOwn) {
+  PhotoOptions po;
+  Registration r;
+  const double h = HfovFromFocal35mm(35.0, 600, 400);
+  r.focal_px = FocalFromHfovPx(1.06 * h, 600);
+  EXPECT_FALSE(PhotoExifHfovDeg(po, 600, 400).has_value());  // no EXIF: nothing to depart from
+  EXPECT_EQ(LensDepartureFromExif(po, r, 600, 400), 0.0);
+  po.exif.focal_35mm = 35.0;
+  ASSERT_TRUE(PhotoExifHfovDeg(po, 600, 400).has_value());
+  EXPECT_NEAR(*PhotoExifHfovDeg(po, 600, 400), h, 1e-9);
+  EXPECT_NEAR(LensDepartureFromExif(po, r, 600, 400), 0.06, 1e-9);
+  r.focal_px = FocalFromHfovPx(0.94 * h, 600);  // narrower counts alike
+  EXPECT_NEAR(LensDepartureFromExif(po, r, 600, 400), 0.06, 1e-9);
+  r.focal_px = FocalFromHfovPx(1.06 * h, 600);
+  po.hfov_deg = 1.06 * h;  // an opening angle given: the EXIF's is not searched
+  EXPECT_EQ(LensDepartureFromExif(po, r, 600, 400), 0.0);
+  po.hfov_deg.reset();
+  po.camera = CameraIntrinsics::FromHfov(600, 400, 1.06 * h);  // a known camera is used as given
+  EXPECT_EQ(LensDepartureFromExif(po, r, 600, 400), 0.0);
+  po.camera.reset();
+  r.focal_px = NAN;  // no pose fitted
+  EXPECT_EQ(LensDepartureFromExif(po, r, 600, 400), 0.0);
 }
 
 // Given no altitude (the ring's site stands 1.7 m over the ground) and a

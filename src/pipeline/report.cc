@@ -183,7 +183,8 @@ nlohmann::json RegistrationReport(const Site& site, const PhotoRegistration& pho
                            {"best_pitch_shift_deg", Rounded(c.PitchShiftDeg(), 2)},
                            {"horizons", c.horizons},
                            {"wide_places", c.wide_places},
-                           {"ridges_limit", c.only_ridges_limit}};
+                           {"ridges_limit", c.only_ridges_limit},
+                           {"lens_limit", c.only_lens_limit}};
     j["timing_ms"]["position_check"] = Rounded(c.ms, 1);
   }
   return j;
