@@ -142,7 +142,10 @@ Modes (each a per-photo table and a summary):
   ring-noise, ring-blur, ring-dark, ... (ring-KEY for each photometric
             change; not in the default set; minutes each) the ring's 468
             wrong positions on that change's copies: registered and false
-            (> 1 deg; --floors ring-KEY=N, a ceiling, default 0)
+            (> 1 deg; --floors ring-KEY=N, a ceiling, default 0); so too
+            ring-reencode, ring-gray, ring-upscale2,
+            ring-upscale4, ring-jpeg50, ring-jpeg30, ring-banner, ring-turned
+            on those modes' copies
   jpeg30-skyline  (not in the default set; seconds) the skyline of the
             quality-30 copies against the hand trace, as skyline (--floors
             jpeg30-skyline=F)
@@ -732,6 +735,37 @@ PHOTOMETRIC = [
 ]
 
 
+def ring_of_copies(binary, shared, photos, images, truths, jobs, tmpdir, what, ceiling, check, mode):
+    """The ring's 468 wrong positions (RING_OFFSETS) on copies of the photos
+    (images: name -> path; truths: name -> the copy's truth): prints the
+    registered and false ones; False when a check failed (more false ones
+    than `ceiling`, or errors)."""
+    probes = [(p, b, dist) + offset_position(p[1]["lat"], p[1]["lon"], b, dist)
+              for p in photos for b, dist in RING_OFFSETS]
+    out = register_many(binary, shared, [
+        dict(photo_dir=d, name=name, truth=truths[name], extra=[], lat=lat, lon=lon, image=images[name])
+        for (name, t, d), b, dist, lat, lon in probes], jobs, tmpdir)
+    n_reg, false, errs = 0, [], []
+    for ((name, _, _), b, dist, _, _), r in zip(probes, out):
+        if r.get("status") == "error":
+            errs.append(f"{name} {b}/{dist // 1000}: {r.get('message')}")
+        if r.get("status") != "registered":
+            continue
+        n_reg += 1
+        err = pose_off_deg(errors(r, truths[name]))
+        if err > FALSE_DEG:
+            false.append(f"{name} {b}/{dist // 1000}: {err:.1f}")
+    print(f"\n== a ring of wrong positions (12 bearings at 2, 3 and 5 km), {what} ==")
+    for f in false + errs:
+        print("  " + f)
+    print(f"ring probes: {len(probes)}; registered: {n_reg} (none should); false (> 1 deg): {len(false)}; "
+          f"errors: {len(errs)}")
+    if check and (len(false) > ceiling or errs):
+        print(f"FAIL: --modes ring-{mode}: {len(false)} false registrations (at most {ceiling:.0f}) or errors")
+        return False
+    return True
+
+
 def photometric_modes(binary, shared, photos, modes, tmpdir, pool, jobs, floors, check):
     """The photometric and wrong-photometric modes (see the usage); False
     when a check failed."""
@@ -796,32 +830,9 @@ def photometric_modes(binary, shared, photos, modes, tmpdir, pool, jobs, floors,
         if not report_wrong("wrong position (2-10 km away) or another region's DEM, every photometric change", out):
             ok = ok and not check
     for key, what, _ in PHOTOMETRIC:
-        if "ring-" + key not in modes:
-            continue
-        probes = [(p, b, dist) + offset_position(p[1]["lat"], p[1]["lon"], b, dist)
-                  for p in photos for b, dist in RING_OFFSETS]
-        out = register_many(binary, shared, [
-            dict(photo_dir=d, name=name, truth=t, extra=[], lat=lat, lon=lon, image=copies[(name, key)])
-            for (name, t, d), b, dist, lat, lon in probes], jobs, tmpdir)
-        n_reg, false, errs = 0, [], []
-        for ((name, t, _), b, dist, _, _), r in zip(probes, out):
-            if r.get("status") == "error":
-                errs.append(f"{name} {b}/{dist // 1000}: {r.get('message')}")
-            if r.get("status") != "registered":
-                continue
-            n_reg += 1
-            err = pose_off_deg(errors(r, t))
-            print(f"  registered: {name} {b}/{dist // 1000}: {err:.2f} deg off")
-            if err > FALSE_DEG:
-                false.append(f"{name} {b}/{dist // 1000}: {err:.1f}")
-        print(f"\n== a ring of wrong positions (12 bearings at 2, 3 and 5 km), {what} ==")
-        for f in false + errs:
-            print("  " + f)
-        print(f"ring probes: {len(probes)}; registered: {n_reg} (none should); false (> 1 deg): {len(false)}; "
-              f"errors: {len(errs)}")
-        if check and (len(false) > floors.get("ring-" + key, 0) or errs):
-            print(f"FAIL: --modes ring-{key}: {len(false)} false registrations (at most "
-                  f"{floors.get('ring-' + key, 0):.0f}) or errors")
+        if "ring-" + key in modes and not ring_of_copies(
+                binary, shared, photos, {name: copies[(name, key)] for name, _, _ in photos},
+                {name: t for name, t, _ in photos}, jobs, tmpdir, what, floors.get("ring-" + key, 0), check, key):
             ok = False
     return ok
 
@@ -958,11 +969,25 @@ def main():
              "kept)", bannered),
             ("turned", ".turned.jpg", "no prior, stored a quarter turn with EXIF Orientation 6 (a camera held "
              "upright)", turned_copy)):
-        if mode not in modes:
+        ring = "ring-" + mode in modes and mode != "noexif"  # ring-noexif: the ring with --no-exif (above)
+        if mode not in modes and not ring:
             continue
         cv2 = opencv_for(mode)
         if cv2 is None:
             failed = failed or check
+            continue
+        if ring:
+            images = {}
+            for name, t, d in photos:
+                images[name] = os.path.join(tmpdir, name + suffix)
+                if not write(cv2, os.path.join(d, t["image"]), images[name]):
+                    print(f"FAIL: cannot write the {mode} copy of {name}")
+                    failed = True
+            if len(images) == len(photos) and not ring_of_copies(
+                    binary, shared, photos, images, {name: t for name, t, _ in photos}, jobs, tmpdir,
+                    title.replace("no prior, ", ""), floors.get("ring-" + mode, 0), check, mode):
+                failed = True
+        if mode not in modes:
             continue
 
         def copy_of(p):
@@ -1005,32 +1030,10 @@ def main():
                                                       for pr in probes], jobs, tmpdir)
             if not report_wrong(f"wrong position (2-10 km away) or another region's DEM, {what}", out) and check:
                 failed = True
-        if "ring-" + mode in modes:
-            probes = [(p, b, dist) + offset_position(p[1]["lat"], p[1]["lon"], b, dist)
-                      for p in photos for b, dist in RING_OFFSETS]
-            out = register_many(binary, shared, [
-                dict(photo_dir=d, name=name, truth=crops[name][1], extra=[], lat=lat, lon=lon, image=crops[name][0])
-                for (name, t, d), b, dist, lat, lon in probes], jobs, tmpdir)
-            n_reg, false, errs = 0, [], []
-            for ((name, _, _), b, dist, _, _), r in zip(probes, out):
-                if r.get("status") == "error":
-                    errs.append(f"{name} {b}/{dist // 1000}: {r.get('message')}")
-                if r.get("status") != "registered":
-                    continue
-                n_reg += 1
-                e = errors(r, crops[name][1])
-                err = pose_off_deg(e)
-                if err > FALSE_DEG:
-                    false.append(f"{name} {b}/{dist // 1000}: {err:.1f}")
-            print(f"\n== a ring of wrong positions (12 bearings at 2, 3 and 5 km), {what} ==")
-            for f in false + errs:
-                print("  " + f)
-            print(f"ring probes: {len(probes)}; registered: {n_reg} (none should); false (> 1 deg): {len(false)}; "
-                  f"errors: {len(errs)}")
-            if check and (len(false) > floors["ring-" + mode] or errs):
-                print(f"FAIL: --modes ring-{mode}: {len(false)} false registrations (at most "
-                      f"{floors['ring-' + mode]:.0f}) or errors")
-                failed = True
+        if "ring-" + mode in modes and not ring_of_copies(
+                binary, shared, photos, {name: c[0] for name, c in crops.items()},
+                {name: c[1] for name, c in crops.items()}, jobs, tmpdir, what, floors["ring-" + mode], check, mode):
+            failed = True
     # The hand-traced horizon (the matching alone), with k1 fitted and
     # without; a false registration fails the check with k1 only.
     for mode, extra, title in (("traced", [], "--skyline: the hand-traced horizon (matching alone)"),
