@@ -67,9 +67,10 @@ struct PositionCheckOptions {
   // registrations): 0.954-0.993 of the EXIF's opening angle (a departure of
   // at most 0.046); the 5 false registrations of the photometric copies'
   // rings (3744 probes 2-3 km away, 1.3-4.0 deg off, best places at cost
-  // ratios 0.901-0.953): 0.883-0.935 or 1.068-1.124 (0.065-0.124). A 3/4
-  // crop of AKJNC_20120813 at its station fits 0.95 (a place 3.3 km away
-  // at 0.969): a step at 0.05 refused it.
+  // ratios 0.901-0.953): 0.883-0.935 or 1.068-1.124 (0.065-0.124). The
+  // price: a 3/4 crop of AKJNC_20120813 at its station fits 0.94 (its
+  // searched centre trades against the focal length) and a place 3.3 km
+  // away 0.969 of its cost: refused.
   double lens_departure = 0.0;
   double lens_departure_from = 0.04;
   double lens_departure_full = 0.06;
