@@ -317,6 +317,10 @@ PhotoRegistration RegisterPhoto(const Site& site, const cv::Mat& image_in, const
   }
   r.message += UnknownFovHint(r, out.fov_source, image.cols);
   if (po.refine_position) RefinePhotoPosition(site, image, *po.refine_position, ro, out, pool);
+  // A cropped photo's centre before the position check: the check reads
+  // the lens the answer will report (the centre trades against the focal
+  // length, PositionCheckOptions::lens_departure).
+  if (r.registered && ro.principal_point_range > 0.0) r = RefinePrincipalColumn(out.skyline, out.Horizon(site), r, ro);
   if (po.check_position && r.registered) {
     PositionCheckOptions co = *po.check_position;
     co.ridges_decided = out.ridge_check && !out.ridge_check->RuledOut().empty();
@@ -327,7 +331,6 @@ PhotoRegistration RegisterPhoto(const Site& site, const cv::Mat& image_in, const
       r.message = out.position_check->message;
     }
   }
-  if (r.registered && ro.principal_point_range > 0.0) r = RefinePrincipalColumn(out.skyline, out.Horizon(site), r, ro);
   out.match_ms = MsSince(t0);
   return out;
 }
