@@ -66,6 +66,24 @@ constexpr float kMonochromeChroma = 2.0f;  // chroma (delta E) that 99% of a mon
 // threshold deep_blue_b (DeepBlueB): 0 to 1 over a few units of b*.
 inline float DeepBlue(float b, float deep_blue_b) { return Logistic((deep_blue_b - b) * (1.0f / 3)); }
 
+// Saturated blue is sky only while it is not much darker than the sky
+// above it: shadowed or hazy blue mountains under a clipped-white or
+// cool-cast sky are as saturated as a deep sky (measured on copies of
+// AK10_20090827: a shaded slope at L* 38, b* -32 under a white sky at L* 95;
+// far ridges at L* 41, b* -30 under a sky at L* 66, b* -20). A deep blue
+// sky below a white cloud keeps at least half the cloud's lightness (the
+// rendered fuji_02 sits at 0.68 of it, so the ratio stays 0.5 against a
+// non-blue reference); below a blue sky the sky darkens far less toward the
+// horizon, so there the ratio is 0.7. 1 when l is above ratio * above_l,
+// falling to 0 over a few units of L*; the ratio moves between the two over
+// a few units of the reference's b* around -12.
+constexpr float kDeepBlueDarkRatio = 0.5f;      // below a cloud or a pale sky
+constexpr float kDeepBlueDarkRatioBlue = 0.7f;  // below a blue sky
+inline float NotTooDark(float l, float above_l, float above_b) {
+  const float ratio = kDeepBlueDarkRatio +
+                      Logistic((-12.0f - above_b) * 0.5f) * (kDeepBlueDarkRatioBlue - kDeepBlueDarkRatio);
+  return Logistic((l - ratio * above_l) * (1.0f / 3));
+}
 inline int HistIndex(float l, float a, float b) {
   const int li = std::clamp(static_cast<int>(l * (kHistBins / 100.0f)), 0, kHistBins - 1);
   const int ai = std::clamp(static_cast<int>((a + 64.0f) * (kHistBins / 128.0f)), 0, kHistBins - 1);
@@ -104,14 +122,19 @@ HR_VECTOR_CLONES void SkyScoreFromTopBand(const LabPlanes& lab, float deep_blue_
   for (int c = 0; c < w; ++c) ls.insert(ls.end(), lab.l.ptr<float>(c), lab.l.ptr<float>(c) + band);
   std::nth_element(ls.begin(), ls.begin() + ls.size() / 2, ls.end());
   const float lm = ls[ls.size() / 2];
+  ls.clear();
+  for (int c = 0; c < w; ++c) ls.insert(ls.end(), lab.b.ptr<float>(c), lab.b.ptr<float>(c) + band);
+  std::nth_element(ls.begin(), ls.begin() + ls.size() / 2, ls.end());
+  const float bm = ls[ls.size() / 2];
   constexpr float kDarkDrop = 6.0f, kDarkScale = 2.5f;  // darker than the reference by this much: terrain
   s.create(w, h, CV_32F);
-  std::vector<float> scratch(5 * static_cast<size_t>(h));
+  std::vector<float> scratch(6 * static_cast<size_t>(h));
   float* not_warm = scratch.data();
   float* deep_blue = not_warm + h;
   float* exp_light = deep_blue + h;
   float* exp_ref = exp_light + h;
   float* ref_at = exp_ref + h;
+  float* ref_b_at = ref_at + h;
   for (int c = 0; c < w; ++c) {
     const float* l = lab.l.ptr<float>(c);
     const float* a = lab.a.ptr<float>(c);
@@ -136,16 +159,17 @@ HR_VECTOR_CLONES void SkyScoreFromTopBand(const LabPlanes& lab, float deep_blue_
     // The only sequential part, so it decides "sky score > 0.5" without the
     // logistic: (1 - dark) * not_warm > 0.5, with dark = logistic(x) and
     // x = (ref - drop - l) / scale, holds when e^x < 2 not_warm - 1.
-    float ref = lm, exp_ref_now = exp_of_ref(lm);
+    float ref = lm, ref_b = bm, exp_ref_now = exp_of_ref(lm);
     for (int r = 0; r < h; ++r) {
       ref_at[r] = ref;
+      ref_b_at[r] = ref_b;
       if (b[r] < -8.0f && l[r] > ref &&
           (deep_blue[r] * not_warm[r] > 0.5f || exp_ref_now * exp_light[r] < 2.0f * not_warm[r] - 1.0f))
-        ref = l[r], exp_ref_now = exp_ref[r];
+        ref = l[r], ref_b = b[r], exp_ref_now = exp_ref[r];
     }
     for (int r = 0; r < h; ++r) {
       const float dark = Logistic(((ref_at[r] - kDarkDrop) - l[r]) * (1.0f / kDarkScale));
-      out[r] = std::max(1.0f - dark, deep_blue[r]) * not_warm[r];
+      out[r] = std::max(1.0f - dark, deep_blue[r] * NotTooDark(l[r], ref_at[r], ref_b_at[r])) * not_warm[r];
     }
   }
 }
@@ -200,7 +224,9 @@ inline float StepAt(const float* l, const float* a, const float* b, int i0, int 
   // A step down into saturated blue is within the sky (a cloud's base, the
   // renderer's or a real sky's deep blue near the horizon): terrain below
   // the skyline is never that blue, even far and hazy.
-  const float into_deep_blue = DeepBlue(below_b, deep_blue_b);
+  // Unless the blue below is much darker than what is above (NotTooDark).
+  const float into_deep_blue = DeepBlue(below_b, deep_blue_b) *
+                               NotTooDark(0.5f * (l[i2] + l[i3]), 0.5f * (l[i0] + l[i1]), 0.5f * (b[i0] + b[i1]));
   return (dl > 2.0f ? 0.5f * mag : mag) * (1.0f - into_deep_blue);
 }
 
@@ -449,11 +475,17 @@ HR_VECTOR_CLONES void PersistentSteps(const LabPlanes& lab, int k, float deep_bl
     const int last = end - 2;
     for (int y = k; y <= std::min(end, last); ++y) {
       const float below_b = (cb[y + 2 + k] - cb[y + 2]) * inv_k;
-      o[y] = std::min(plain[y], trend[y]) * (1.0f - DeepBlue(below_b, deep_blue_b));
+      const float into = DeepBlue(below_b, deep_blue_b) * NotTooDark((cl[y + 2 + k] - cl[y + 2]) * inv_k,
+                                                                     (cl[y] - cl[y - k]) * inv_k,
+                                                                     (cb[y] - cb[y - k]) * inv_k);
+      o[y] = std::min(plain[y], trend[y]) * (1.0f - into);
     }
     for (int y = std::max(k, last + 1); y <= end; ++y) {
       const float below_b = (cb[h] - cb[h - k]) * inv_k;
-      o[y] = std::min(plain[y], trend[y]) * (1.0f - DeepBlue(below_b, deep_blue_b));
+      const float into = DeepBlue(below_b, deep_blue_b) * NotTooDark((cl[h] - cl[h - k]) * inv_k,
+                                                                     (cl[y] - cl[y - k]) * inv_k,
+                                                                     (cb[y] - cb[y - k]) * inv_k);
+      o[y] = std::min(plain[y], trend[y]) * (1.0f - into);
     }
   }
 }

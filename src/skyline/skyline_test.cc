@@ -332,6 +332,47 @@ TEST(ExtractSkyline, SaturatedBlueBandAboveTheTerrainIsSky) {
   EXPECT_GE(good, w * 95 / 100);
 }
 
+// A clipped sky, white at the top and bluish toward the horizon (L* 96,
+// b* -6 to L* 85, b* -20), over a shaded mountain as saturated a blue as a
+// deep sky but far darker (L* 38, b* -30), over a bright glacier: measured
+// on AK10_20090827 1.3 stops over. The mountain is terrain: the skyline is
+// its top, not its foot (where it was taken while any saturated blue was
+// sky).
+TEST(ExtractSkyline, DarkSaturatedBlueUnderAWhiteSkyIsTerrain) {
+  const int w = 512, h = 300, foot = 190;
+  std::vector<double> top(w);
+  for (int x = 0; x < w; ++x) top[x] = 110.0 + 25.0 * std::sin(x / 45.0);
+  cv::Mat img(h, w, CV_8UC3);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      const int t = (x * 7 + y * 13) % 12;
+      const double f = std::min(1.0, y / top[x]);  // 0 at the top, 1 at the mountain
+      img.at<cv::Vec3b>(y, x) =
+          y + 0.5 < top[x] ? cv::Vec3b(255 - static_cast<int>(4 * f), 248 - static_cast<int>(33 * f),
+                                       229 - static_cast<int>(38 * f))
+          : y < foot       ? cv::Vec3b(140 - t, 88 - t, 65 - t)
+                           : cv::Vec3b(250 - 2 * t, 245 - 2 * t, 235 - 2 * t);
+    }
+  const Skyline s = ExtractSkyline(img, SkylineOptions{});
+  EXPECT_GE(WithinPx(s, top, 1.0), w * 95 / 100);
+}
+
+// The same blue below a white cloud at 0.7 of the cloud's lightness is a
+// deep sky (the rendered fuji_02): the skyline stays at the terrain below.
+TEST(ExtractSkyline, DeepBlueSkyUnderACloudIsStillSky) {
+  const int w = 512, h = 300, cloud_base = 90, ground_top = 170;
+  cv::Mat img(h, w, CV_8UC3);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x)
+      img.at<cv::Vec3b>(y, x) = y < cloud_base   ? cv::Vec3b(245, 245, 245)
+                                : y < ground_top ? cv::Vec3b(215, 150, 95)
+                                                 : cv::Vec3b(70, 95 + (x * 7 + y * 13) % 12, 75);
+  const Skyline s = ExtractSkyline(img, SkylineOptions{});
+  int good = 0;
+  for (int x = 0; x < w; ++x) good += std::isfinite(s.y[x]) && std::abs(s.y[x] - ground_top) <= 1.0;
+  EXPECT_GE(good, w * 95 / 100);
+}
+
 // A faint hazy far ridge above a contrasty near slope: the first clear edge
 // from the top is the skyline (the paper's scan), not the strongest one.
 TEST(ExtractSkyline, FaintFarRidgeAboveANearSlopeIsTheSkyline) {
