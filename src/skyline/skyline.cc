@@ -80,8 +80,8 @@ inline float DeepBlue(float b, float deep_blue_b) { return Logistic((deep_blue_b
 constexpr float kDeepBlueDarkRatio = 0.5f;      // below a cloud or a pale sky
 constexpr float kDeepBlueDarkRatioBlue = 0.7f;  // below a blue sky
 inline float NotTooDark(float l, float above_l, float above_b) {
-  const float ratio = kDeepBlueDarkRatio +
-                      Logistic((-12.0f - above_b) * 0.5f) * (kDeepBlueDarkRatioBlue - kDeepBlueDarkRatio);
+  const float ratio =
+      kDeepBlueDarkRatio + Logistic((-12.0f - above_b) * 0.5f) * (kDeepBlueDarkRatioBlue - kDeepBlueDarkRatio);
   return Logistic((l - ratio * above_l) * (1.0f / 3));
 }
 inline int HistIndex(float l, float a, float b) {
@@ -475,16 +475,16 @@ HR_VECTOR_CLONES void PersistentSteps(const LabPlanes& lab, int k, float deep_bl
     const int last = end - 2;
     for (int y = k; y <= std::min(end, last); ++y) {
       const float below_b = (cb[y + 2 + k] - cb[y + 2]) * inv_k;
-      const float into = DeepBlue(below_b, deep_blue_b) * NotTooDark((cl[y + 2 + k] - cl[y + 2]) * inv_k,
-                                                                     (cl[y] - cl[y - k]) * inv_k,
-                                                                     (cb[y] - cb[y - k]) * inv_k);
+      const float into =
+          DeepBlue(below_b, deep_blue_b) *
+          NotTooDark((cl[y + 2 + k] - cl[y + 2]) * inv_k, (cl[y] - cl[y - k]) * inv_k, (cb[y] - cb[y - k]) * inv_k);
       o[y] = std::min(plain[y], trend[y]) * (1.0f - into);
     }
     for (int y = std::max(k, last + 1); y <= end; ++y) {
       const float below_b = (cb[h] - cb[h - k]) * inv_k;
-      const float into = DeepBlue(below_b, deep_blue_b) * NotTooDark((cl[h] - cl[h - k]) * inv_k,
-                                                                     (cl[y] - cl[y - k]) * inv_k,
-                                                                     (cb[y] - cb[y - k]) * inv_k);
+      const float into =
+          DeepBlue(below_b, deep_blue_b) *
+          NotTooDark((cl[h] - cl[h - k]) * inv_k, (cl[y] - cl[y - k]) * inv_k, (cb[y] - cb[y - k]) * inv_k);
       o[y] = std::min(plain[y], trend[y]) * (1.0f - into);
     }
   }

@@ -348,10 +348,10 @@ TEST(ExtractSkyline, DarkSaturatedBlueUnderAWhiteSkyIsTerrain) {
       const int t = (x * 7 + y * 13) % 12;
       const double f = std::min(1.0, y / top[x]);  // 0 at the top, 1 at the mountain
       img.at<cv::Vec3b>(y, x) =
-          y + 0.5 < top[x] ? cv::Vec3b(255 - static_cast<int>(4 * f), 248 - static_cast<int>(33 * f),
-                                       229 - static_cast<int>(38 * f))
-          : y < foot       ? cv::Vec3b(140 - t, 88 - t, 65 - t)
-                           : cv::Vec3b(250 - 2 * t, 245 - 2 * t, 235 - 2 * t);
+          y + 0.5 < top[x]
+              ? cv::Vec3b(255 - static_cast<int>(4 * f), 248 - static_cast<int>(33 * f), 229 - static_cast<int>(38 * f))
+          : y < foot ? cv::Vec3b(140 - t, 88 - t, 65 - t)
+                     : cv::Vec3b(250 - 2 * t, 245 - 2 * t, 235 - 2 * t);
     }
   const Skyline s = ExtractSkyline(img, SkylineOptions{});
   EXPECT_GE(WithinPx(s, top, 1.0), w * 95 / 100);
