@@ -735,33 +735,47 @@ PHOTOMETRIC = [
 ]
 
 
-def ring_of_copies(binary, shared, photos, images, truths, jobs, tmpdir, what, ceiling, check, mode):
-    """The ring's 468 wrong positions (RING_OFFSETS) on copies of the photos
-    (images: name -> path; truths: name -> the copy's truth): prints the
-    registered and false ones; False when a check failed (more false ones
-    than `ceiling`, or errors)."""
+def ring_of_copies(binary, shared, photos, images, truths, jobs, tmpdir, what, ceiling, check, mode,
+                   extra_of=None, alt=True):
+    """The ring's 468 wrong positions (RING_OFFSETS) on the photos or copies
+    of them (images: name -> path, None for the photos as taken; truths:
+    name -> the copy's truth, None for the photos'), with the options
+    extra_of(i, name, truth) gives the i-th probe (none when None) and the
+    altitude given or not (`alt`): prints each photo's registered and false
+    ones; False when a check failed (more false ones than `ceiling`, or
+    errors)."""
     probes = [(p, b, dist) + offset_position(p[1]["lat"], p[1]["lon"], b, dist)
               for p in photos for b, dist in RING_OFFSETS]
+    truth_of = (lambda name, t: truths[name]) if truths else (lambda name, t: t)
     out = register_many(binary, shared, [
-        dict(photo_dir=d, name=name, truth=truths[name], extra=[], lat=lat, lon=lon, image=images[name])
-        for (name, t, d), b, dist, lat, lon in probes], jobs, tmpdir)
-    n_reg, false, errs = 0, [], []
-    for ((name, _, _), b, dist, _, _), r in zip(probes, out):
-        if r.get("status") == "error":
-            errs.append(f"{name} {b}/{dist // 1000}: {r.get('message')}")
-        if r.get("status") != "registered":
-            continue
-        n_reg += 1
-        err = pose_off_deg(errors(r, truths[name]))
-        if err > FALSE_DEG:
-            false.append(f"{name} {b}/{dist // 1000}: {err:.1f}")
-    print(f"\n== a ring of wrong positions (12 bearings at 2, 3 and 5 km), {what} ==")
-    for f in false + errs:
-        print("  " + f)
-    print(f"ring probes: {len(probes)}; registered: {n_reg} (none should); false (> 1 deg): {len(false)}; "
+        dict(photo_dir=d, name=name, truth=truth_of(name, t), extra=extra_of(i, name, t) if extra_of else [],
+             lat=lat, lon=lon, alt=alt, image=images[name] if images else None)
+        for i, ((name, t, d), b, dist, lat, lon) in enumerate(probes)], jobs, tmpdir)
+    print(f"\n== a ring of wrong positions: 12 bearings at 2, 3 and 5 km ({len(probes)} probes){what} ==")
+    print(f"{'photo':<24}{'registered':>11}{'false':>6}  false ones (bearing/km: error deg, ambiguity)")
+    n_reg = n_false = 0
+    errs = []
+    for name, t, _ in photos:
+        reg, false = 0, []
+        for ((pn, _, _), b, dist, _, _), r in zip(probes, out):
+            if pn != name:
+                continue
+            if r.get("status") == "error":
+                errs.append(f"{name} from {dist / 1000:.0f} km at {b}: {r.get('message')}")
+            if r.get("status") != "registered":
+                continue
+            reg += 1
+            err = pose_off_deg(errors(r, truth_of(name, t)))
+            if err > FALSE_DEG:
+                false.append(f"{b}/{dist // 1000}: {err:.1f}, {r.get('ambiguity_ratio')}")
+        n_reg, n_false = n_reg + reg, n_false + len(false)
+        print(f"{name:<24}{reg:>11}{len(false):>6}  " + "; ".join(false))
+    print(f"ring probes: {len(probes)}; registered: {n_reg} (none should); false (> 1 deg): {n_false}; "
           f"errors: {len(errs)}")
-    if check and (len(false) > ceiling or errs):
-        print(f"FAIL: --modes ring-{mode}: {len(false)} false registrations (at most {ceiling:.0f}) or errors")
+    for e in errs:
+        print("  error: " + e)
+    if check and (n_false > ceiling or errs):
+        print(f"FAIL: --modes ring-{mode}: {n_false} false registrations (at most {ceiling:.0f}) or errors")
         return False
     return True
 
@@ -832,7 +846,7 @@ def photometric_modes(binary, shared, photos, modes, tmpdir, pool, jobs, floors,
     for key, what, _ in PHOTOMETRIC:
         if "ring-" + key in modes and not ring_of_copies(
                 binary, shared, photos, {name: copies[(name, key)] for name, _, _ in photos},
-                {name: t for name, t, _ in photos}, jobs, tmpdir, what, floors.get("ring-" + key, 0), check, key):
+                None, jobs, tmpdir, ", " + what, floors.get("ring-" + key, 0), check, key):
             ok = False
     return ok
 
@@ -984,8 +998,8 @@ def main():
                     print(f"FAIL: cannot write the {mode} copy of {name}")
                     failed = True
             if len(images) == len(photos) and not ring_of_copies(
-                    binary, shared, photos, images, {name: t for name, t, _ in photos}, jobs, tmpdir,
-                    title.replace("no prior, ", ""), floors.get("ring-" + mode, 0), check, mode):
+                    binary, shared, photos, images, None, jobs, tmpdir,
+                    ", " + title.replace("no prior, ", ""), floors.get("ring-" + mode, 0), check, mode):
                 failed = True
         if mode not in modes:
             continue
@@ -1032,7 +1046,7 @@ def main():
                 failed = True
         if "ring-" + mode in modes and not ring_of_copies(
                 binary, shared, photos, {name: c[0] for name, c in crops.items()},
-                {name: c[1] for name, c in crops.items()}, jobs, tmpdir, what, floors["ring-" + mode], check, mode):
+                {name: c[1] for name, c in crops.items()}, jobs, tmpdir, ", " + what, floors["ring-" + mode], check, mode):
             failed = True
     # The hand-traced horizon (the matching alone), with k1 fitted and
     # without; a false registration fails the check with k1 only.
@@ -1133,42 +1147,10 @@ def main():
                       if m in modes]:
         variant = ring_mode.partition("-")[2]
         files = variant_files(variant, photos, tmpdir)
-        probes = [(p, b, dist) + offset_position(p[1]["lat"], p[1]["lon"], b, dist)
-                  for p in photos for b, dist in RING_OFFSETS]
-
-        out = register_many(binary, shared, [
-            dict(photo_dir=d, name=name, truth=t, extra=variant_args(variant, name, t, i, files), lat=lat, lon=lon,
-                 alt=not variant.startswith("noalt"))
-            for i, ((name, t, d), b, dist, lat, lon) in enumerate(probes)], jobs, tmpdir)
-        print(f"\n== a ring of wrong positions: 12 bearings at 2, 3 and 5 km ({len(probes)} probes)"
-              f"{VARIANT_TITLES[variant]} ==")
-        print(f"{'photo':<24}{'registered':>11}{'false':>6}  false ones (bearing/km: error deg, cost ratio)")
-        n_reg = n_false = 0
-        errs = []
-        for name, t, _ in photos:
-            reg, false = 0, []
-            for ((pn, _, _), b, dist, _, _), r in zip(probes, out):
-                if pn != name:
-                    continue
-                if r.get("status") == "error":
-                    errs.append((name, b, dist, r.get("message")))
-                if r.get("status") != "registered":
-                    continue
-                reg += 1
-                e = errors(r, t)
-                err = pose_off_deg(e)
-                if err > FALSE_DEG:
-                    false.append(f"{b}/{dist // 1000}: {err:.1f}, {r.get('ambiguity_ratio')}")
-            n_reg += reg
-            n_false += len(false)
-            print(f"{name:<24}{reg:>11}{len(false):>6}  " + "; ".join(false))
-        print(f"ring probes: {len(probes)}; registered: {n_reg} (none should); false (> 1 deg): {n_false}; "
-              f"errors: {len(errs)}")
-        for n, b, dist, m in errs:
-            print(f"  error: {n} from {dist / 1000:.0f} km at {b}: {m}")
-        if check and (n_false > floors[ring_mode] or errs):
-            print(f"FAIL: {n_false} false registrations from the ring of wrong positions (at most "
-                  f"{floors[ring_mode]:.0f}) or errors")
+        if not ring_of_copies(binary, shared, photos, None, None, jobs, tmpdir, VARIANT_TITLES[variant],
+                              floors[ring_mode], check, variant or "plain",
+                              extra_of=lambda i, name, t, v=variant, f=files: variant_args(v, name, t, i, f),
+                              alt=not variant.startswith("noalt")):
             failed = True
     if "perturbed" in modes:
         runs = [(p, "truth", None, None, None, True, pe) for p in photos for pe in PERTURBATIONS]
