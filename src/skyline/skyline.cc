@@ -119,13 +119,13 @@ HR_VECTOR_CLONES void SkyScoreFromTopBand(const LabPlanes& lab, float deep_blue_
   const int band = std::max(2, h / 30);
   std::vector<float> ls;
   ls.reserve(static_cast<size_t>(w) * band);
-  for (int c = 0; c < w; ++c) ls.insert(ls.end(), lab.l.ptr<float>(c), lab.l.ptr<float>(c) + band);
-  std::nth_element(ls.begin(), ls.begin() + ls.size() / 2, ls.end());
-  const float lm = ls[ls.size() / 2];
-  ls.clear();
-  for (int c = 0; c < w; ++c) ls.insert(ls.end(), lab.b.ptr<float>(c), lab.b.ptr<float>(c) + band);
-  std::nth_element(ls.begin(), ls.begin() + ls.size() / 2, ls.end());
-  const float bm = ls[ls.size() / 2];
+  auto band_median = [&](const cv::Mat& plane) {  // the top band's median of one plane
+    ls.clear();
+    for (int c = 0; c < w; ++c) ls.insert(ls.end(), plane.ptr<float>(c), plane.ptr<float>(c) + band);
+    std::nth_element(ls.begin(), ls.begin() + ls.size() / 2, ls.end());
+    return ls[ls.size() / 2];
+  };
+  const float lm = band_median(lab.l), bm = band_median(lab.b);
   constexpr float kDarkDrop = 6.0f, kDarkScale = 2.5f;  // darker than the reference by this much: terrain
   s.create(w, h, CV_32F);
   std::vector<float> scratch(6 * static_cast<size_t>(h));
@@ -471,20 +471,13 @@ HR_VECTOR_CLONES void PersistentSteps(const LabPlanes& lab, int k, float deep_bl
     }
     for (int y = k; y < 2 * k && y <= end; ++y) trend[y] = plain[y];
     float* o = out.ptr<float>(c);
-    // b of the k rows past the transition (2 rows below y), clamped at the bottom.
-    const int last = end - 2;
-    for (int y = k; y <= std::min(end, last); ++y) {
-      const float below_b = (cb[y + 2 + k] - cb[y + 2]) * inv_k;
+    // The k rows past the transition (from 2 rows below y, clamped at the
+    // bottom): saturated blue, unless much darker than the k rows above.
+    for (int y = k; y <= end; ++y) {
+      const int lo = std::min(y + 2, end);
       const float into =
-          DeepBlue(below_b, deep_blue_b) *
-          NotTooDark((cl[y + 2 + k] - cl[y + 2]) * inv_k, (cl[y] - cl[y - k]) * inv_k, (cb[y] - cb[y - k]) * inv_k);
-      o[y] = std::min(plain[y], trend[y]) * (1.0f - into);
-    }
-    for (int y = std::max(k, last + 1); y <= end; ++y) {
-      const float below_b = (cb[h] - cb[h - k]) * inv_k;
-      const float into =
-          DeepBlue(below_b, deep_blue_b) *
-          NotTooDark((cl[h] - cl[h - k]) * inv_k, (cl[y] - cl[y - k]) * inv_k, (cb[y] - cb[y - k]) * inv_k);
+          DeepBlue((cb[lo + k] - cb[lo]) * inv_k, deep_blue_b) *
+          NotTooDark((cl[lo + k] - cl[lo]) * inv_k, (cl[y] - cl[y - k]) * inv_k, (cb[y] - cb[y - k]) * inv_k);
       o[y] = std::min(plain[y], trend[y]) * (1.0f - into);
     }
   }
