@@ -735,7 +735,7 @@ PHOTOMETRIC = [
 ]
 
 
-def ring_of_copies(binary, shared, photos, images, truths, jobs, tmpdir, what, ceiling, check, mode,
+def ring_of_wrong_positions(binary, shared, photos, images, truths, jobs, tmpdir, what, ceiling, check, mode,
                    extra_of=None, alt=True):
     """The ring's 468 wrong positions (RING_OFFSETS) on the photos or copies
     of them (images: name -> path, None for the photos as taken; truths:
@@ -844,7 +844,7 @@ def photometric_modes(binary, shared, photos, modes, tmpdir, pool, jobs, floors,
         if not report_wrong("wrong position (2-10 km away) or another region's DEM, every photometric change", out):
             ok = ok and not check
     for key, what, _ in PHOTOMETRIC:
-        if "ring-" + key in modes and not ring_of_copies(
+        if "ring-" + key in modes and not ring_of_wrong_positions(
                 binary, shared, photos, {name: copies[(name, key)] for name, _, _ in photos},
                 None, jobs, tmpdir, ", " + what, floors.get("ring-" + key, 0), check, key):
             ok = False
@@ -997,7 +997,7 @@ def main():
                 if not write(cv2, os.path.join(d, t["image"]), images[name]):
                     print(f"FAIL: cannot write the {mode} copy of {name}")
                     failed = True
-            if len(images) == len(photos) and not ring_of_copies(
+            if len(images) == len(photos) and not ring_of_wrong_positions(
                     binary, shared, photos, images, None, jobs, tmpdir,
                     ", " + title.replace("no prior, ", ""), floors.get("ring-" + mode, 0), check, mode):
                 failed = True
@@ -1044,7 +1044,7 @@ def main():
                                                       for pr in probes], jobs, tmpdir)
             if not report_wrong(f"wrong position (2-10 km away) or another region's DEM, {what}", out) and check:
                 failed = True
-        if "ring-" + mode in modes and not ring_of_copies(
+        if "ring-" + mode in modes and not ring_of_wrong_positions(
                 binary, shared, photos, {name: c[0] for name, c in crops.items()},
                 {name: c[1] for name, c in crops.items()}, jobs, tmpdir, ", " + what, floors["ring-" + mode], check, mode):
             failed = True
@@ -1147,7 +1147,7 @@ def main():
                       if m in modes]:
         variant = ring_mode.partition("-")[2]
         files = variant_files(variant, photos, tmpdir)
-        if not ring_of_copies(binary, shared, photos, None, None, jobs, tmpdir, VARIANT_TITLES[variant],
+        if not ring_of_wrong_positions(binary, shared, photos, None, None, jobs, tmpdir, VARIANT_TITLES[variant],
                               floors[ring_mode], check, variant or "plain",
                               extra_of=lambda i, name, t, v=variant, f=files: variant_args(v, name, t, i, f),
                               alt=not variant.startswith("noalt")):
