@@ -149,6 +149,16 @@ Modes (each a per-photo table and a summary):
   jpeg30-skyline  (not in the default set; seconds) the skyline of the
             quality-30 copies against the hand trace, as skyline (--floors
             jpeg30-skyline=F)
+  stability  (not in the default set; seconds) how far each photo's extracted
+            skyline moves when the photo is re-encoded as JPEG at quality 95
+            (pixels change by ~0.2 grey levels) or 50: per photo the columns
+            given a value in both, those that move by more than 1 and 3 px,
+            and those given in one only. Hand trace not needed: all photos.
+            A skyline that moves with such noise decides some columns on a
+            threshold's edge; the registration then moves with it (reencode
+            registers 10 of 13). With --check, fails when the share of the
+            columns moving more than 1 px exceeds --floors stability=F (a
+            ceiling, default 1: no check)
   gray-skyline  (not in the default set; seconds) the skyline of the grey
             copies against the hand trace, as skyline (--floors
             gray-skyline=F, a share of the traced columns within 2 px)
@@ -619,6 +629,50 @@ def signed_errors(traced, s, top=0):
     return [s["y"][x] + top - y for x, y in traced if s["y"][x] is not None]
 
 
+def skyline_stability(binary, photos, qualities=(95, 50)):
+    """Per photo and in all: the extracted skyline of each JPEG copy at
+    `qualities` against the photo's own. Returns the share of the columns
+    given in both that move by more than 1 px (over all copies); NaN without
+    OpenCV."""
+    cv2 = opencv_for("stability")
+    if cv2 is None:
+        return float("nan")
+
+    def extract(image, tmp):
+        out = os.path.join(tmp, "s.json")
+        subprocess.run([binary, "skyline", image, "--json", out], check=True)
+        return [math.nan if v is None else v for v in json.load(open(out))["y"]]
+
+    print("\n== skyline stability: the photo's extracted skyline against its JPEG copies' ==")
+    print(f"{'photo':<24}{'copy':>5}{'both':>6}{'>1px':>7}{'>3px':>7}{'lost':>6}{'new':>6}")
+    tot = {q: [0, 0, 0] for q in qualities}  # both, > 1 px, > 3 px
+    for name, t, photo_dir in photos:
+        with tempfile.TemporaryDirectory() as tmp:
+            source = os.path.join(photo_dir, t["image"])
+            base = extract(source, tmp)
+            colour = cv2.imread(source)
+            for q in qualities:
+                image = os.path.join(tmp, f"q{q}.jpg")
+                cv2.imwrite(image, colour, [cv2.IMWRITE_JPEG_QUALITY, q])
+                copy = extract(image, tmp)
+                pairs = [(a, b) for a, b in zip(base, copy) if math.isfinite(a) and math.isfinite(b)]
+                moved1 = sum(abs(a - b) > 1 for a, b in pairs)
+                moved3 = sum(abs(a - b) > 3 for a, b in pairs)
+                lost = sum(math.isfinite(a) and not math.isfinite(b) for a, b in zip(base, copy))
+                new = sum(math.isfinite(b) and not math.isfinite(a) for a, b in zip(base, copy))
+                for i, v in enumerate((len(pairs), moved1, moved3)):
+                    tot[q][i] += v
+                share = lambda k: 100.0 * k / len(pairs) if pairs else float("nan")
+                print(f"{name:<24}{'q' + str(q):>5}{len(pairs):>6}{share(moved1):>6.1f}%{share(moved3):>6.1f}%"
+                      f"{lost:>6}{new:>6}")
+    for q in qualities:
+        both, m1, m3 = tot[q]
+        print(f"quality {q}: columns given in both {both}; moved more than 1 px: {100.0 * m1 / max(1, both):.1f}%, "
+              f"more than 3 px: {100.0 * m3 / max(1, both):.1f}%")
+    both = sum(v[0] for v in tot.values())
+    return sum(v[1] for v in tot.values()) / both if both else float("nan")
+
+
 def skyline_table(binary, photos, thin_sky_px=None, shared=None, grey=False, jpeg_quality=None, framed=False):
     """Per photo and in all: the traced columns given a value and within 2 px.
     With thin_sky_px, each photo is first cropped from the top to leave that
@@ -862,7 +916,7 @@ def main():
     floors = {"plain": 12, "camera": 12, "initial": 13, "skyline": 0.9, "thin": 0.9, "skyline-given": 0.95,
               "registered-skyline": 0.9, "registered-skyline-given": 0.95,
               "thin-given": 0.95, "ring": 0, "ring-camera": 0, "ring-initial": 0, "ring-sensors": 0, "ring-noexif": 0, "ring-hfov": 0, "ring-range": 0, "ring-noalt": 0, "ring-noalt-hfov": 0, "hfov": 12,
-              "sensors": 0, "noexif": 0, "reencode": 0, "gray": 0, "upscale2": 0, "upscale4": 0, "jpeg50": 0, "jpeg30": 0, "crop": 0, "crop-narrow": 0, "ring-crop": 0, "ring-crop-narrow": 0, "stations": 0, "turned": 0, "banner": 0, "gray-skyline": 0.0,
+              "sensors": 0, "noexif": 0, "reencode": 0, "gray": 0, "upscale2": 0, "upscale4": 0, "jpeg50": 0, "jpeg30": 0, "crop": 0, "crop-narrow": 0, "ring-crop": 0, "ring-crop-narrow": 0, "stations": 0, "turned": 0, "banner": 0, "gray-skyline": 0.0, "stability": 1.0,
               "jpeg30-skyline": 0.0, "photometric": 0, "photometric-skyline": 0.0, "thin-framed": 0.0,
               "thin-framed-given": 0.0}
     for kv in (opt("--floors") or "").split(","):
@@ -1078,6 +1132,11 @@ def main():
         w, _ = skyline_table(binary, photos, jpeg_quality=30)
         if check and not w >= floors["jpeg30-skyline"]:
             print("FAIL: the quality-30 copies' skyline accuracy misses its floor")
+            failed = True
+    if "stability" in modes:
+        moved = skyline_stability(binary, photos)
+        if check and not moved <= floors["stability"]:  # NaN (no OpenCV) fails too
+            print("FAIL: the skyline moves with JPEG re-encoding more than its ceiling allows")
             failed = True
     if "skyline" in modes:
         w, g = skyline_table(binary, photos)
