@@ -670,7 +670,9 @@ def skyline_stability(binary, photos, qualities=(95, 50)):
         print(f"quality {q}: columns given in both {both}; moved more than 1 px: {100.0 * m1 / max(1, both):.1f}%, "
               f"more than 3 px: {100.0 * m3 / max(1, both):.1f}%")
     both = sum(v[0] for v in tot.values())
-    return sum(v[1] for v in tot.values()) / both if both else float("nan")
+    moved = sum(v[1] for v in tot.values()) / both if both else float("nan")
+    print(f"all copies: moved more than 1 px: {100.0 * moved:.1f}% of {both} columns")
+    return moved
 
 
 def skyline_table(binary, photos, thin_sky_px=None, shared=None, grey=False, jpeg_quality=None, framed=False):
