@@ -612,12 +612,21 @@ void RaiseDips(const cv::Mat& bgr, const std::vector<uint8_t>& skip, std::vector
     int moved = 0;
     for (int x = reach; x + reach < w; ++x) {
       if (skip[x] || !std::isfinite(y0[x])) continue;
-      double left = INFINITY, right = INFINITY;
+      // Each side's top, of its columns not raised before and of all.
+      double left = INFINITY, right = INFINITY, left_all = INFINITY, right_all = INFINITY;
       for (int k = 1; k <= reach; ++k) {
-        if (std::isfinite(y0[x - k]) && !raised[x - k]) left = std::min(left, y0[x - k]);
-        if (std::isfinite(y0[x + k]) && !raised[x + k]) right = std::min(right, y0[x + k]);
+        if (std::isfinite(y0[x - k])) {
+          left_all = std::min(left_all, y0[x - k]);
+          if (!raised[x - k]) left = std::min(left, y0[x - k]);
+        }
+        if (std::isfinite(y0[x + k])) {
+          right_all = std::min(right_all, y0[x + k]);
+          if (!raised[x + k]) right = std::min(right, y0[x + k]);
+        }
       }
-      const double top = std::max(left, right);  // the lower of the two sides' tops
+      // The lower of the two sides' tops, one side at least read from
+      // columns not raised before.
+      const double top = std::min(std::max(left, right_all), std::max(left_all, right));
       if (!std::isfinite(top) || y0[x] <= top + rows) continue;
       const int first = static_cast<int>(std::floor(top)) - kDipSkyAbove,
                 last = static_cast<int>(std::floor(y0[x])) - 2;

@@ -191,9 +191,13 @@ void RaiseToSkyModelDeparture(const cv::Mat& bgr, const SkyModel& model, double 
 // when its own column shows one: the DP and the refinement took the
 // clearer inner edge (dark rock under a faint snow ridge in haze) where
 // the neighbours found the ridge. Neighbours are read within 6 columns on
-// each side per 1024 (at least 3), the columns raised before (finite in
-// `alt`, as RaiseToSkyModelDeparture leaves it) not among them: a sunset's
-// glow raised over a notch would lift the notch. A dip lies more
+// each side per 1024 (at least 3). The columns raised before (finite in
+// `alt`, as RaiseToSkyModelDeparture leaves it) count on one side only,
+// the other side's top read from columns not raised: a sunset's glow
+// raised on both sides of a notch would lift the notch, while a run of
+// dips beside columns the sky model raised (AKJNC_20120813's columns
+// 864-874, re-encoded at JPEG quality 95) is lifted from its other side.
+// A dip lies more
 // than 2.5 rows (scaled with the width over 1024) below the lower of the
 // two sides' highest boundaries, `top`. From 8 rows above `top`, a straight
 // line through 6 rows of the column's sky; the first row from which 3 in a

@@ -286,10 +286,17 @@ TEST(RaiseDips, ANotchWithSkyDownToItsBoundaryStays) {
 
 TEST(RaiseDips, RaisedNeighboursAndSkippedColumnsDoNotMove) {
   // The dip at 100 has only raised columns above it within reach (3
-  // columns at this width): no neighbour to rise to.
-  auto [y, alt] = RaiseDipsIn(FaintRidge, {100}, {97, 98, 99});
+  // columns at this width) on both sides: no neighbour to rise to (a
+  // sunset's glow raised on both sides of a notch).
+  auto [y, alt] = RaiseDipsIn(FaintRidge, {100}, {97, 98, 99, 101, 102, 103});
   EXPECT_EQ(y[100], kBoundary);
   EXPECT_TRUE(std::isnan(alt[100]));
+  // Raised on one side only, the other side's columns not raised: it rises
+  // (a run on the inner edge beside columns the sky model raised,
+  // AKJNC_20120813's columns 864-874).
+  std::tie(y, alt) = RaiseDipsIn(FaintRidge, {100}, {97, 98, 99});
+  EXPECT_NEAR(y[100], kTop - 0.5, 1.0);
+  EXPECT_EQ(alt[100], kBoundary);
   std::vector<uint8_t> skip(kW, 0);
   skip[60] = 1;
   std::tie(y, alt) = RaiseDipsIn(FaintRidge, {60, 140}, {}, skip);

@@ -1173,10 +1173,12 @@ Skyline ExtractSceneSkyline(const cv::Mat& image, const SkylineOptions& options,
   // A far ridge in haze above a clearer near one: the boundary up to where the sky ends.
   skyline_detail::RaiseToSkyModelDeparture(bgr, sky_model, sx, sy, deep_blue_b, grown, out.y, out.y_alt);
   // A column dipping below its neighbours onto an inner edge: up to the faint ridge above it.
-  // Not from the columns raised to a departure from the sky model (a
-  // sunset's glow raised over a notch would lift the notch); those raised
-  // to the sky's end count (measured: without them the real photos' gain
-  // is lost, 99 columns mended -> 7).
+  // Not from the columns raised to a departure from the sky model on both
+  // sides (a sunset's glow raised over a notch would lift the notch; on one
+  // side they count: real photos 80.6% -> 80.8% of the traced columns
+  // within 2 px, rendered 97.3% -> 97.4%); those raised to the sky's end
+  // count (measured: without them the real photos' gain is lost, 99
+  // columns mended -> 7).
   skyline_detail::RaiseDips(bgr, grown, out.y, out.y_alt);
   // A ridge's top fainter than its edge lower down (a dark crest, a bright
   // rim, haze on the upper slope): the boundary up to where the lightness
