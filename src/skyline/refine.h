@@ -194,9 +194,10 @@ void RaiseToSkyModelDeparture(const cv::Mat& bgr, const SkyModel& model, double 
 // each side per 1024 (at least 3). The columns raised before (finite in
 // `alt`, as RaiseToSkyModelDeparture leaves it) count on one side only,
 // the other side's top read from columns not raised: a sunset's glow
-// raised on both sides of a notch would lift the notch, while a run of
-// dips beside columns the sky model raised (AKJNC_20120813's columns
-// 864-874, re-encoded at JPEG quality 95) is lifted from its other side.
+// raised on both sides of a notch would lift the notch, while a dip beside
+// columns the sky model raised (AKJNC_20120813's columns 879-880) is lifted.
+// A run of dips wider than the reach is not (its own columns are the
+// lower side's top: AKJNC_20120813's 864-874 re-encoded at JPEG quality 95).
 // A dip lies more
 // than 2.5 rows (scaled with the width over 1024) below the lower of the
 // two sides' highest boundaries, `top`. From 8 rows above `top`, a straight

@@ -292,8 +292,8 @@ TEST(RaiseDips, RaisedNeighboursAndSkippedColumnsDoNotMove) {
   EXPECT_EQ(y[100], kBoundary);
   EXPECT_TRUE(std::isnan(alt[100]));
   // Raised on one side only, the other side's columns not raised: it rises
-  // (a run on the inner edge beside columns the sky model raised,
-  // AKJNC_20120813's columns 864-874).
+  // (a dip on the inner edge beside columns the sky model raised,
+  // AKJNC_20120813's columns 879-880).
   std::tie(y, alt) = RaiseDipsIn(FaintRidge, {100}, {97, 98, 99});
   EXPECT_NEAR(y[100], kTop - 0.5, 1.0);
   EXPECT_EQ(alt[100], kBoundary);
