@@ -133,10 +133,10 @@ def table(title, cases, binary, baseline=False):
 def height_misses(rows, binary):
     """For each registered row whose height is reported observable and more
     than 3 m off: the photo registered (--trust-position, no refinement) at
-    the truth and at the estimate. Returns (model's, search's) counts."""
+    the truth and at the estimate."""
     misses = [x for x in rows if x["status"] == "registered" and "u" in x.get("obs_str", "") and abs(x["dv"]) > 3.0]
     if not misses:
-        return 0, 0
+        return
     print("heights observable and more than 3 m off: the fit at the truth and at the estimate (--trust-position)")
     print(f"{'scene':<24}{'offset':>13}{'dv':>7}{'sig_v':>7}{'rms@truth':>10}{'inl':>6}{'rms@est':>9}{'inl':>6}  whose")
     model = search = 0
@@ -154,7 +154,6 @@ def height_misses(rows, binary):
               f"{fmt(it, '6.2f')}{fmt(re_, '9.3f')}{fmt(ie, '6.2f')}  {whose}")
     print(f"height misses: {len(misses)}; the estimate fits better than the truth (the model's): {model}; "
           f"the truth fits better (the prior's pull or the search's): {search}")
-    return model, search
 
 
 def summary(rows, label):

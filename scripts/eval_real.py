@@ -629,6 +629,14 @@ def signed_errors(traced, s, top=0):
     return [s["y"][x] + top - y for x, y in traced if s["y"][x] is not None]
 
 
+def extract_skyline(binary, image):
+    """The skyline JSON `horizonreg skyline IMAGE --json` writes."""
+    with tempfile.TemporaryDirectory() as tmp:
+        out = os.path.join(tmp, "s.json")
+        subprocess.run([binary, "skyline", image, "--json", out], check=True, capture_output=True)
+        return json.load(open(out))
+
+
 def skyline_stability(binary, photos, qualities=(95, 50)):
     """Per photo and in all: the extracted skyline of each JPEG copy at
     `qualities` against the photo's own. Returns the share of the columns
@@ -638,10 +646,8 @@ def skyline_stability(binary, photos, qualities=(95, 50)):
     if cv2 is None:
         return float("nan")
 
-    def extract(image, tmp):
-        out = os.path.join(tmp, "s.json")
-        subprocess.run([binary, "skyline", image, "--json", out], check=True)
-        return [math.nan if v is None else v for v in json.load(open(out))["y"]]
+    def extract(image):
+        return [math.nan if v is None else v for v in extract_skyline(binary, image)["y"]]
 
     print("\n== skyline stability: the photo's extracted skyline against its JPEG copies' ==")
     print(f"{'photo':<24}{'copy':>5}{'both':>6}{'>1px':>7}{'>3px':>7}{'lost':>6}{'new':>6}")
@@ -649,12 +655,12 @@ def skyline_stability(binary, photos, qualities=(95, 50)):
     for name, t, photo_dir in photos:
         with tempfile.TemporaryDirectory() as tmp:
             source = os.path.join(photo_dir, t["image"])
-            base = extract(source, tmp)
+            base = extract(source)
             colour = cv2.imread(source)
             for q in qualities:
                 image = os.path.join(tmp, f"q{q}.jpg")
                 cv2.imwrite(image, colour, [cv2.IMWRITE_JPEG_QUALITY, q])
-                copy = extract(image, tmp)
+                copy = extract(image)
                 pairs = [(a, b) for a, b in zip(base, copy) if math.isfinite(a) and math.isfinite(b)]
                 moved1 = sum(abs(a - b) > 1 for a, b in pairs)
                 moved3 = sum(abs(a - b) > 3 for a, b in pairs)
@@ -731,9 +737,9 @@ def skyline_table(binary, photos, thin_sky_px=None, shared=None, grey=False, jpe
                 if r["status"] == "error":
                     print(f"{name:<24} error: {r['message']}")
                     continue
+                s = json.load(open(os.path.join(tmp, "s.json")))
             else:
-                subprocess.run([binary, "skyline", image, "--json", os.path.join(tmp, "s.json")], check=True)
-            s = json.load(open(os.path.join(tmp, "s.json")))
+                s = extract_skyline(binary, image)
         signed = signed_errors(traced, s, top)
         d = [abs(v) for v in signed]
         below, above = sum(v > 2 for v in signed), sum(v < -2 for v in signed)
@@ -860,11 +866,7 @@ def photometric_modes(binary, shared, photos, modes, tmpdir, pool, jobs, floors,
         for key, what, _ in PHOTOMETRIC:
             def run(p):
                 r = register(binary, shared, p[2], p[0], p[1], [], image=copies[(p[0], key)])
-                with tempfile.TemporaryDirectory() as tmp:
-                    subprocess.run([binary, "skyline", copies[(p[0], key)], "--json", os.path.join(tmp, "s.json")],
-                                   check=True, capture_output=True)
-                    s = json.load(open(os.path.join(tmp, "s.json")))
-                return p, r, s
+                return p, r, extract_skyline(binary, copies[(p[0], key)])
             good, false, traced, given, within, missed = 0, [], 0, 0, 0, []
             for (name, t, _), r, s in pool.map(run, photos):
                 e = errors(r, t)
