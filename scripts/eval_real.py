@@ -121,6 +121,12 @@ Modes (each a per-photo table and a summary):
             within 0.5 deg (--floors upscale2=N, upscale4=N, default 0) and the
             false ones (0)
   wrong-upscale4  (not in the default set) the wrong probes on the 4x copies
+  downscale2  (not in the default set) plain on each photo at half its size
+            (area averaging, JPEG quality 95, EXIF kept): a web page's or a
+            webcam's 360-540 columns, where each pixel spans twice the angle.
+            Counts the photos within 0.5 deg (--floors downscale2=N, default
+            0) and the false ones (0)
+  wrong-downscale2  (not in the default set) the wrong probes on those copies
   jpeg50, jpeg30  (not in the default set) plain on each photo re-encoded
             as JPEG at quality 50 or 30 (EXIF kept): a webcam's or a web
             page's copy, whose smooth sky comes in flat 8 x 8 blocks and
@@ -144,8 +150,8 @@ Modes (each a per-photo table and a summary):
             wrong positions on that change's copies: registered and false
             (> 1 deg; --floors ring-KEY=N, a ceiling, default 0); so too
             ring-reencode, ring-gray, ring-upscale2,
-            ring-upscale4, ring-jpeg50, ring-jpeg30, ring-banner, ring-turned
-            on those modes' copies
+            ring-upscale4, ring-downscale2, ring-jpeg50, ring-jpeg30,
+            ring-banner, ring-turned on those modes' copies
   jpeg30-skyline  (not in the default set; seconds) the skyline of the
             quality-30 copies against the hand trace, as skyline (--floors
             jpeg30-skyline=F)
@@ -920,7 +926,7 @@ def main():
     floors = {"plain": 12, "camera": 12, "initial": 13, "skyline": 0.9, "thin": 0.9, "skyline-given": 0.95,
               "registered-skyline": 0.9, "registered-skyline-given": 0.95,
               "thin-given": 0.95, "ring": 0, "ring-camera": 0, "ring-initial": 0, "ring-sensors": 0, "ring-noexif": 0, "ring-hfov": 0, "ring-range": 0, "ring-noalt": 0, "ring-noalt-hfov": 0, "hfov": 12,
-              "sensors": 0, "noexif": 0, "reencode": 0, "gray": 0, "upscale2": 0, "upscale4": 0, "jpeg50": 0, "jpeg30": 0, "crop": 0, "crop-narrow": 0, "ring-crop": 0, "ring-crop-narrow": 0, "stations": 0, "turned": 0, "banner": 0, "gray-skyline": 0.0, "stability": 1.0,
+              "sensors": 0, "noexif": 0, "reencode": 0, "gray": 0, "upscale2": 0, "upscale4": 0, "downscale2": 0, "jpeg50": 0, "jpeg30": 0, "crop": 0, "crop-narrow": 0, "ring-crop": 0, "ring-crop-narrow": 0, "stations": 0, "turned": 0, "banner": 0, "gray-skyline": 0.0, "stability": 1.0,
               "jpeg30-skyline": 0.0, "photometric": 0, "photometric-skyline": 0.0, "thin-framed": 0.0,
               "thin-framed-given": 0.0}
     for kv in (opt("--floors") or "").split(","):
@@ -1029,12 +1035,21 @@ def main():
             big = cv2.resize(image, None, fx=factor, fy=factor, interpolation=cv2.INTER_CUBIC)
             return write_jpeg_with_exif(cv2, big, source, path)
         return write
+
+    def downscaled(cv2, source, path):
+        # Half the size by area averaging: a web page's or a webcam's
+        # 360-540 columns.
+        image = cv2.imread(source)
+        return write_jpeg_with_exif(cv2, cv2.resize(image, None, fx=0.5, fy=0.5, interpolation=cv2.INTER_AREA),
+                                    source, path)
     for mode, suffix, title, write in (
             ("noexif", ".noexif.png", "no prior, no EXIF (the pixels alone, as PNG)", without_exif),
             ("reencode", ".q95.jpg", "no prior, re-encoded as JPEG quality 95 (EXIF kept)", compressed(95)),
             ("gray", ".gray.jpg", "no prior, grey (luma only, JPEG quality 95, EXIF kept)", grey),
             ("upscale2", ".x2.jpg", "no prior, upscaled 2x (bicubic, JPEG quality 95, EXIF kept)", upscaled(2)),
             ("upscale4", ".x4.jpg", "no prior, upscaled 4x (bicubic, JPEG quality 95, EXIF kept)", upscaled(4)),
+            ("downscale2", ".half.jpg", "no prior, half the size (area averaging, JPEG quality 95, EXIF kept)",
+             downscaled),
             ("jpeg50", ".q50.jpg", "no prior, re-encoded as JPEG quality 50 (EXIF kept)", compressed(50)),
             ("jpeg30", ".q30.jpg", "no prior, re-encoded as JPEG quality 30 (EXIF kept)", compressed(30)),
             ("banner", ".banner.jpg", "no prior, a webcam's timestamp strip over the top (JPEG quality 95, EXIF "
@@ -1185,6 +1200,8 @@ def main():
     # size, a strongly compressed one, must refuse a wrong position as the
     # photo does.
     for mode, suffix, what, write in (("wrong-upscale4", ".wrong.x4.jpg", "the photos upscaled 4x", upscaled(4)),
+                                      ("wrong-downscale2", ".wrong.half.jpg", "the photos at half the size",
+                                       downscaled),
                                       ("wrong-banner", ".wrong.banner.jpg", "the photos under a timestamp strip",
                                        bannered),
                                       ("wrong-jpeg30", ".wrong.q30.jpg", "the photos as JPEG quality 30",
