@@ -227,8 +227,9 @@ TEST(Register, RecoversASyntheticPoseWithoutPriors) {
 
 // A narrow window of opening angles (a known --hfov) is a constraint on the
 // answer, not only on the search: a skyline that fits only 1.8% below the
-// window (inside the 5% the candidates may stray) is no registration; in a
-// wide window any opening angle inside it is.
+// window (inside the 5% the candidates may stray) is no registration. So is
+// a wide window (the EXIF's +-10%), with no slack: any opening angle inside
+// it is kept, one past its edge is not.
 TEST(Register, AKnownOpeningAngleIsKept) {
   const HorizonProfile p = SyntheticHorizon(0.25);
   const CameraPose pose{300.2, -2.0, 3.0};
@@ -248,7 +249,23 @@ TEST(Register, AKnownOpeningAngleIsKept) {
   EXPECT_TRUE(off.KeepsKnownHfov(61.0));
   RegistrationOptions wide;
   wide.min_hfov_deg = 35.0, wide.max_hfov_deg = 50.0;
-  EXPECT_TRUE(wide.KeepsKnownHfov(34.0));
+  ASSERT_FALSE(wide.NarrowHfovWindow());
+  EXPECT_TRUE(wide.KeepsKnownHfov(35.0));
+  EXPECT_TRUE(wide.KeepsKnownHfov(50.0));
+  EXPECT_FALSE(wide.KeepsKnownHfov(34.9));
+  EXPECT_FALSE(wide.KeepsKnownHfov(50.1));
+  // The truth 3% past a wide window's upper edge: inside the 5% a candidate
+  // may stray, so the fit finds it, and refuses it.
+  RegistrationOptions below = wide;
+  below.min_hfov_deg = 0.8 * 60.0 / 1.03, below.max_hfov_deg = 60.0 / 1.03;
+  ASSERT_FALSE(below.NarrowHfovWindow());
+  const Registration past = Register(SkylineOf(p, pose, k), p, below);
+  EXPECT_FALSE(past.registered);
+  EXPECT_NE(past.message.find("outside the one given"), std::string::npos) << past.message;
+  RegistrationOptions around = wide;
+  around.min_hfov_deg = 60.0 / 1.1, around.max_hfov_deg = 60.0 * 1.1;
+  const Registration inside = Register(SkylineOf(p, pose, k), p, around);
+  EXPECT_TRUE(inside.registered) << inside.message;
 }
 
 // A crop of a wide view (the camera's centre 150 px right of the image's):
