@@ -202,8 +202,8 @@ Refined RefineLeastSquares(const Scorer& scorer, const std::vector<Column>& cols
     problem.SetParameterUpperBound(p, 3, 5.0 * start.f);
   }
   if (options.fit_k1) {
-    problem.SetParameterLowerBound(p, 4, -0.6);
-    problem.SetParameterUpperBound(p, 4, 0.6);
+    problem.SetParameterLowerBound(p, 4, -kK1Bound);
+    problem.SetParameterUpperBound(p, 4, kK1Bound);
   }
   ceres::Solver::Options so;
   so.linear_solver_type = ceres::DENSE_QR;

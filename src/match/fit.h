@@ -65,6 +65,10 @@ inline DemErrorModel ScaledModel(DemErrorModel m, double scale) {
 // The chi^2 (ColumnLoss) above which a column is an outlier: 3 sigma.
 inline constexpr double kGateChi2 = 9.0;
 
+// The box k1 is fitted in (RefineLeastSquares): +-kK1Bound, four times its
+// prior's default sigma; no lens a skyline is fitted to comes near it.
+inline constexpr double kK1Bound = 0.6;
+
 class Scorer {
  public:
   // sigma_px: the skyline's pixel noise (1 sigma); image_height_px sets the

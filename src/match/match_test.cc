@@ -268,6 +268,25 @@ TEST(Register, AKnownOpeningAngleIsKept) {
   EXPECT_TRUE(inside.registered) << inside.message;
 }
 
+// A skyline that only a lens bent past k1's box (kK1Bound) lays on the
+// horizon is no registration: the fit runs k1 to the box's end, which no
+// camera's lens reaches (a wrong place's horizon is what bends it so). A
+// lens inside the box is fitted and registered.
+TEST(Register, ALensBentToTheEndOfItsRangeIsRefused) {
+  const HorizonProfile p = SyntheticHorizon(0.1);
+  const CameraPose pose{123.4, 1.5, 0.0};
+  CameraIntrinsics k = CameraIntrinsics::FromHfov(1024, 683, 60.0);
+  k.distortion = LensDistortion::Radial(-0.1);
+  const Registration kept = Register(SkylineOf(p, pose, k), p, {});
+  ASSERT_TRUE(kept.registered) << kept.message;
+  ASSERT_TRUE(kept.distortion_estimated);
+  EXPECT_NEAR(kept.intrinsics.distortion.k()[0], -0.1, 0.02);
+  k.distortion = LensDistortion::Radial(0.8);
+  const Registration bent = Register(SkylineOf(p, pose, k), p, {});
+  EXPECT_FALSE(bent.registered);
+  EXPECT_NE(bent.message.find("lens bent to the end of its range"), std::string::npos) << bent.message;
+}
+
 // A crop of a wide view (the camera's centre 150 px right of the image's):
 // registered as centred, the centre ray is off; RefinePrincipalColumn finds
 // the camera's centre and the centre ray. Without a range it does nothing.

@@ -114,6 +114,17 @@ CameraIntrinsics Registration::Intrinsics(int width, int height) const {
 
 namespace {
 
+// A fitted k1 at the end of its box (match_detail::kK1Bound): the fit bent
+// the lens as far as it may to lay the skyline on the DEM horizon, which no
+// lens does (the real photos and all their copies registered at their
+// stations fit k1 between -0.34 and +0.11). The DEM horizon is then the
+// wrong one: half-width crops of AKJNC_20120813 given places 2 and 5 km
+// away registered 2.8 and 13.9 deg off with k1 at +0.6 (eval_real.py
+// --modes ring-crop-narrow, 2026-12-03).
+bool K1AtBound(double k1) { return std::abs(k1) >= (1.0 - 1e-3) * match_detail::kK1Bound; }
+constexpr const char* kK1AtBoundMessage =
+    "the skyline fits only with the lens bent to the end of its range (a wrong position or DEM?; k1 ";
+
 double PriorPenalty(const SensorPrior& prior, const CameraPose& pose) {
   double chi2 = 0.0;
   if (prior.compass_deg)
@@ -446,6 +457,8 @@ void FinishRegistration(const Scorer& scorer, const ImageFrame& frame, std::vect
   else if (!frame.known() && !options.KeepsKnownHfov(out.hfov_deg))
     why << "the skyline fits at an opening angle of " << out.hfov_deg << " deg, outside the one given ("
         << options.min_hfov_deg << "-" << options.max_hfov_deg << " deg searched)";
+  else if (lso.fit_k1 && K1AtBound(bp.k1))
+    why << kK1AtBoundMessage << bp.k1 << ")";
   out.message = why.str();
   out.registered = out.message.empty();
   if (out.registered) out.message = "registered";
@@ -1015,6 +1028,17 @@ Registration RefinePrincipalColumn(const Skyline& skyline, const HorizonProfile&
       std::abs(out.center_ray.pitch_deg - reg.center_ray.pitch_deg) > kMaxPrincipalMoveDeg ||
       !options.AdmitsHfov(out.hfov_deg))
     return reg;
+  // The skyline explained clearly best with the lens at its bound: as in
+  // the registration (K1AtBound), no camera's.
+  if (reg.distortion_estimated && K1AtBound(chosen.pose.k1)) {
+    Registration refused = reg;
+    refused.registered = false;
+    std::ostringstream why;
+    why.precision(3);
+    why << kK1AtBoundMessage << chosen.pose.k1 << ", the camera's centre searched)";
+    refused.message = why.str();
+    return refused;
+  }
   return out;
 }
 
