@@ -1029,27 +1029,24 @@ def main():
                     cv2.FONT_HERSHEY_SIMPLEX, 0.6 * s, (255, 255, 255), max(1, int(2 * s)))
         return write_jpeg_with_exif(cv2, image, source, path)
 
-    def upscaled(factor):
+    def resized(factor):
+        # Bicubic up (a DSLR's or a phone's pixel count); area averaging down
+        # (a web page's or a webcam's 360-540 columns at half the size).
         def write(cv2, source, path):
             image = cv2.imread(source)
-            big = cv2.resize(image, None, fx=factor, fy=factor, interpolation=cv2.INTER_CUBIC)
-            return write_jpeg_with_exif(cv2, big, source, path)
+            interpolation = cv2.INTER_CUBIC if factor > 1 else cv2.INTER_AREA
+            out = cv2.resize(image, None, fx=factor, fy=factor, interpolation=interpolation)
+            return write_jpeg_with_exif(cv2, out, source, path)
         return write
 
-    def downscaled(cv2, source, path):
-        # Half the size by area averaging: a web page's or a webcam's
-        # 360-540 columns.
-        image = cv2.imread(source)
-        return write_jpeg_with_exif(cv2, cv2.resize(image, None, fx=0.5, fy=0.5, interpolation=cv2.INTER_AREA),
-                                    source, path)
     for mode, suffix, title, write in (
             ("noexif", ".noexif.png", "no prior, no EXIF (the pixels alone, as PNG)", without_exif),
             ("reencode", ".q95.jpg", "no prior, re-encoded as JPEG quality 95 (EXIF kept)", compressed(95)),
             ("gray", ".gray.jpg", "no prior, grey (luma only, JPEG quality 95, EXIF kept)", grey),
-            ("upscale2", ".x2.jpg", "no prior, upscaled 2x (bicubic, JPEG quality 95, EXIF kept)", upscaled(2)),
-            ("upscale4", ".x4.jpg", "no prior, upscaled 4x (bicubic, JPEG quality 95, EXIF kept)", upscaled(4)),
+            ("upscale2", ".x2.jpg", "no prior, upscaled 2x (bicubic, JPEG quality 95, EXIF kept)", resized(2)),
+            ("upscale4", ".x4.jpg", "no prior, upscaled 4x (bicubic, JPEG quality 95, EXIF kept)", resized(4)),
             ("downscale2", ".half.jpg", "no prior, half the size (area averaging, JPEG quality 95, EXIF kept)",
-             downscaled),
+             resized(0.5)),
             ("jpeg50", ".q50.jpg", "no prior, re-encoded as JPEG quality 50 (EXIF kept)", compressed(50)),
             ("jpeg30", ".q30.jpg", "no prior, re-encoded as JPEG quality 30 (EXIF kept)", compressed(30)),
             ("banner", ".banner.jpg", "no prior, a webcam's timestamp strip over the top (JPEG quality 95, EXIF "
@@ -1199,9 +1196,9 @@ def main():
     # The wrong probes on altered copies: a wide photo read at its reduced
     # size, a strongly compressed one, must refuse a wrong position as the
     # photo does.
-    for mode, suffix, what, write in (("wrong-upscale4", ".wrong.x4.jpg", "the photos upscaled 4x", upscaled(4)),
+    for mode, suffix, what, write in (("wrong-upscale4", ".wrong.x4.jpg", "the photos upscaled 4x", resized(4)),
                                       ("wrong-downscale2", ".wrong.half.jpg", "the photos at half the size",
-                                       downscaled),
+                                       resized(0.5)),
                                       ("wrong-banner", ".wrong.banner.jpg", "the photos under a timestamp strip",
                                        bannered),
                                       ("wrong-jpeg30", ".wrong.q30.jpg", "the photos as JPEG quality 30",
