@@ -59,6 +59,32 @@ void BM_Ridges_FullTile3arcsec(benchmark::State& state) {
   for (auto _ : state) benchmark::DoNotOptimize(ComputeRidges(w, obs, o, RidgeOptions{}));
 }
 
+// A view's horizon (0.1 deg bins over +-40 deg, 40 km, one thread: as the
+// position check's places) 600 m from one computed before, without (0) and
+// with (1) that one's hints (HorizonHints): the same horizon, the terrain
+// under the hints culled sooner.
+void BM_Horizon_ViewNearAnother(benchmark::State& state) {
+  const std::string path = DemPath(kTile3.file);
+  if (path.empty()) return state.SkipWithError("../shared is absent");
+  HorizonOptions o;
+  o.azimuth_step_deg = 0.1;
+  o.max_distance_m = 40'000;
+  o.num_threads = 1;
+  o.sector_center_deg = 60.0;
+  o.sector_half_width_deg = 40.0;
+  const Terrain terrain({path});
+  const TerrainWindow w = terrain.ReadWindow({kTile3.lat, kTile3.lon, 0}, 45'000);
+  const GeodeticPoint a = ResolveObserver(w, kTile3.lat, kTile3.lon, 1.7, std::nullopt);
+  const GeodeticPoint b = ResolveObserver(w, kTile3.lat + 0.0054, kTile3.lon, 1.7, std::nullopt);  // 600 m north
+  const HorizonProfile from_a = ComputeHorizon(w, a, o);
+  for (auto _ : state) {
+    if (state.range(0))
+      benchmark::DoNotOptimize(ComputeHorizonNear(w, b, o, from_a));
+    else
+      benchmark::DoNotOptimize(ComputeHorizon(w, b, o));
+  }
+}
+
 void LoadDem(benchmark::State& state, const Case& c) {
   const std::string path = DemPath(c.file);
   if (path.empty()) return state.SkipWithError("../shared is absent");
@@ -74,6 +100,7 @@ BENCHMARK(BM_Horizon_FullTile3arcsec)->Arg(1)->Arg(2)->Unit(benchmark::kMillisec
 BENCHMARK(BM_Horizon_Window15km)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_Horizon_FullTile1arcsec)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_Ridges_FullTile3arcsec)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_Horizon_ViewNearAnother)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_LoadDem_Tile3arcsec)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_LoadDem_Tile1arcsec)->Unit(benchmark::kMillisecond)->UseRealTime();
 

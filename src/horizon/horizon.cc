@@ -22,11 +22,15 @@ class HorizonAccumulator {
   explicit HorizonAccumulator(const SweepSetup& setup) : setup_(&setup), best_(setup.num_sectors) {}
   // Bins outside the sector are never raised (and tiles seen only in them
   // are culled): their maxima start at +infinity.
-  HorizonAccumulator(const SweepSetup& setup, const HorizonOptions& options) : HorizonAccumulator(setup) {
+  // With `hinted`, the bins start at their hints, marked as such (HintLeft).
+  HorizonAccumulator(const SweepSetup& setup, const HorizonOptions& options, bool hinted) : HorizonAccumulator(setup) {
+    if (hinted)
+      for (int i = 0; i < setup.num_sectors; ++i)
+        if (std::isfinite((*options.hint_tan_el)[i])) best_[i].tan_el = (*options.hint_tan_el)[i], best_[i].hint = true;
     if (!(options.sector_half_width_deg < 180.0)) return;
     const double step_deg = 360.0 / setup.num_sectors;
     for (int i = 0; i < setup.num_sectors; ++i)
-      if (!options.InSector(i * step_deg)) best_[i].tan_el = std::numeric_limits<double>::infinity();
+      if (!options.InSector(i * step_deg)) best_[i] = Best{std::numeric_limits<double>::infinity()};
   }
 
   void Post(const SweepPoint& p) { Update(p.sector, p); }
@@ -105,8 +109,14 @@ class HorizonAccumulator {
   struct Best {
     double tan_el = -std::numeric_limits<double>::infinity();
     double d = NAN, e = 0, n = 0, u = 0, h = NAN;
+    bool hint = false;  // a hint no terrain has reached yet
   };
   const std::vector<Best>& best() const { return best_; }
+  // Whether some bin still holds its hint: no terrain there reached it, so
+  // the hint may have culled the terrain that sets the bin.
+  bool HintLeft() const {
+    return std::any_of(best_.begin(), best_.end(), [](const Best& b) { return b.hint; });
+  }
 
   // The lowest current maximum tan(elevation) over `count` sectors from
   // `first` (wrapping): a tile whose points all stay strictly below it
@@ -120,12 +130,13 @@ class HorizonAccumulator {
 
  private:
   void Update(int s, const SweepPoint& x) {
-    const Best c{x.tan_el, x.d, x.e, x.n, x.u, x.h};
+    const Best c{x.tan_el, x.d, x.e, x.n, x.u, x.h, false};
     if (Better(c, best_[s])) best_[s] = c;
   }
   // Higher, and at equal height nearer: an order that does not depend on
-  // which thread saw which point first.
+  // which thread saw which point first. Terrain as high as a hint replaces it.
   static bool Better(const Best& a, const Best& b) {
+    if (a.tan_el == b.tan_el && b.hint && !a.hint) return true;
     return a.tan_el > b.tan_el || (a.tan_el == b.tan_el && a.tan_el > -std::numeric_limits<double>::infinity() &&
                                    (a.d < b.d || (a.d == b.d && (a.e < b.e || (a.e == b.e && a.n < b.n)))));
   }
@@ -222,6 +233,8 @@ void HorizonOptions::Check() const {
     ThrowField("HorizonOptions::sector_center_deg", sector_center_deg, "finite");
   if (!(sector_half_width_deg > 0.0 && sector_half_width_deg <= 180.0))
     ThrowField("HorizonOptions::sector_half_width_deg", sector_half_width_deg, "0 < half width <= 180");
+  if (hint_tan_el && static_cast<int>(hint_tan_el->size()) != NumBins())
+    ThrowField("HorizonOptions::hint_tan_el", static_cast<double>(hint_tan_el->size()), "NumBins() values");
 }
 
 int HorizonOptions::NumBins() const { return static_cast<int>(std::lround(360.0 / azimuth_step_deg)); }
@@ -268,9 +281,14 @@ HorizonProfile ComputeHorizon(const TerrainWindow& terrain, const GeodeticPoint&
   const int n = options.NumBins();
   const SweepSetup setup =
       internal::MakeSweepSetup(n, 0.5, options.min_distance_m, options.max_distance_m, options.refraction);
-  auto accs = internal::SweepGrids<HorizonAccumulator>(terrain.grids, frame, setup, options.pool, options.num_threads,
-                                                       [&] { return HorizonAccumulator(setup, options); });
-  for (size_t i = 1; i < accs.size(); ++i) accs[0].MergeFrom(accs[i]);
+  auto sweep = [&](bool hinted) {
+    auto accs = internal::SweepGrids<HorizonAccumulator>(terrain.grids, frame, setup, options.pool, options.num_threads,
+                                                         [&] { return HorizonAccumulator(setup, options, hinted); });
+    for (size_t i = 1; i < accs.size(); ++i) accs[0].MergeFrom(accs[i]);
+    return accs;
+  };
+  auto accs = sweep(options.hint_tan_el != nullptr);
+  if (accs[0].HintLeft()) accs = sweep(false);  // a hint too high: the terrain it may have culled is needed
 
   HorizonProfile out;
   out.observer = observer;
@@ -332,6 +350,46 @@ HorizonProfile ComputeHorizon(const TerrainWindow& terrain, const GeodeticPoint&
     if (gp) out.relief_slope[i] = relief_at(*gp, spacing[gp->grid]);
   }
   return out;
+}
+
+std::vector<Eigen::Vector3d> HorizonPoints(const HorizonProfile& horizon) {
+  std::vector<Eigen::Vector3d> out;
+  for (int i = 0; i < horizon.size(); ++i)
+    if (std::isfinite(horizon.elevation_deg[i]) && std::isfinite(horizon.height_m[i]))
+      out.push_back(EcefFromGeodetic({horizon.lat_deg[i], horizon.lon_deg[i], horizon.height_m[i]}));
+  return out;
+}
+
+std::vector<double> HorizonHints(const std::vector<Eigen::Vector3d>& points_ecef, const GeodeticPoint& observer,
+                                 const HorizonOptions& options) {
+  // Below the point's own elevation by 1e-5 (0.0006 deg): rounding, and a
+  // point inside an edge that lies within one bin from here (the sweep
+  // counts that edge's ends only), do not leave a hint above the bin.
+  constexpr double kMargin = 1e-5;
+  const int n = options.NumBins();
+  std::vector<double> hint(n, NAN);
+  const LocalFrame frame(observer);
+  const double lift = options.refraction / (2.0 * kRefractionEarthRadiusM);
+  const double bins_per_rad = n / (2.0 * kPi);
+  for (const Eigen::Vector3d& ecef : points_ecef) {
+    const Eigen::Vector3d p = frame.EnuFromEcef(ecef);
+    const double d = std::hypot(p.x(), p.y());
+    if (!(d >= options.min_distance_m && d <= options.max_distance_m)) continue;
+    double az = std::atan2(p.x(), p.y());
+    if (az < 0.0) az += 2.0 * kPi;
+    const int bin = static_cast<int>(std::floor(az * bins_per_rad + 0.5)) % n;
+    const double t = (p.z() + lift * d * d) / d - kMargin;
+    if (!(hint[bin] >= t)) hint[bin] = t;
+  }
+  return hint;
+}
+
+HorizonProfile ComputeHorizonNear(const TerrainWindow& terrain, const GeodeticPoint& observer,
+                                  const HorizonOptions& options, const HorizonProfile& nearby) {
+  const std::vector<double> hints = HorizonHints(HorizonPoints(nearby), observer, options);
+  HorizonOptions hinted = options;
+  hinted.hint_tan_el = &hints;
+  return ComputeHorizon(terrain, observer, hinted);
 }
 
 }  // namespace horizonreg

@@ -30,6 +30,12 @@ struct HorizonOptions {
   bool InSector(double azimuth_deg) const {
     return !(std::abs(std::remainder(azimuth_deg - sector_center_deg, 360.0)) > sector_half_width_deg);
   }
+  // Lower bounds of the result, tan(elevation) per bin (NumBins() values,
+  // NaN where none; HorizonHints): terrain that cannot rise above them is
+  // culled sooner. The result is the same as without them: should some
+  // bin's terrain not reach its hint, the horizon is computed again without
+  // hints. ComputeHorizon only.
+  const std::vector<double>* hint_tan_el = nullptr;
   void Check() const;                      // Throws InvalidArgument naming the field.
   int NumBins() const;
 };
@@ -84,6 +90,23 @@ GeodeticPoint ResolveObserver(const TerrainWindow& terrain, double lat_deg, doub
 // fails.
 HorizonProfile ComputeHorizon(const TerrainWindow& terrain, const GeodeticPoint& observer,
                               const HorizonOptions& options);
+
+// Each bin's horizon point (where it has one), ECEF: what HorizonHints reads.
+std::vector<Eigen::Vector3d> HorizonPoints(const HorizonProfile& horizon);
+
+// Hints (HorizonOptions::hint_tan_el) for the horizon at `observer` from a
+// horizon computed nearby on the same terrain (HorizonPoints): each point,
+// a point of the terrain, seen from `observer` (a little lower), in the bin
+// of `options` it falls in; bins no point falls in get none (measured: a
+// horizon 1-4 km away hints about 80% of a real photo's view, one 360 m
+// away 77% of a synthetic circle of ridges).
+std::vector<double> HorizonHints(const std::vector<Eigen::Vector3d>& points_ecef, const GeodeticPoint& observer,
+                                 const HorizonOptions& options);
+
+// ComputeHorizon hinted by a horizon computed nearby on the same terrain
+// (HorizonHints of its HorizonPoints): the same result, sooner.
+HorizonProfile ComputeHorizonNear(const TerrainWindow& terrain, const GeodeticPoint& observer,
+                                  const HorizonOptions& options, const HorizonProfile& nearby);
 
 // One inner ridge line crossing of an azimuth: terrain that forms a
 // silhouette against terrain farther behind it.

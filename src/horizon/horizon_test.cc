@@ -207,6 +207,58 @@ TEST(ComputeHorizon, SectorGivesTheSameBinsInsideAndNaNOutside) {
   EXPECT_THROW(bad.Check(), InvalidArgument);
 }
 
+// Hints from a horizon computed nearby (HorizonHints) cull terrain sooner
+// but must not change the result, even when a hint is too high (the sweep
+// is run again without hints then).
+TEST(ComputeHorizon, HintsLeaveTheResultAsItIs) {
+  const auto cone = ConeHeight(45.1, 7.1, 200.0, 1500.0, 9000.0);
+  DemGrid g = SynthesizeDem(45.3, 6.7, 0.002, 301, 301, [&](double lat, double lon) {
+    return cone(lat, lon) + 60.0 * std::sin(lat * 900.0) * std::cos(lon * 700.0);  // ridges and valleys
+  });
+  TerrainWindow w = WindowOf(std::move(g));
+  const GeodeticPoint a{45.0, 7.0, 400.0}, b{45.002, 7.003, 420.0};  // about 360 m apart
+  auto expect_same = [](const HorizonProfile& x, const HorizonProfile& y) {
+    ASSERT_EQ(x.size(), y.size());
+    for (int i = 0; i < x.size(); ++i) {
+      ASSERT_EQ(std::isfinite(x.elevation_deg[i]), std::isfinite(y.elevation_deg[i])) << "bin " << i;
+      if (!std::isfinite(x.elevation_deg[i])) continue;
+      EXPECT_EQ(x.elevation_deg[i], y.elevation_deg[i]) << "bin " << i;
+      EXPECT_EQ(x.distance_m[i], y.distance_m[i]) << "bin " << i;
+      EXPECT_EQ(x.lat_deg[i], y.lat_deg[i]) << "bin " << i;
+    }
+  };
+  for (const double half : {180.0, 30.0}) {
+    HorizonOptions o;
+    o.num_threads = 2;
+    o.sector_center_deg = 40.0;
+    o.sector_half_width_deg = half;
+    const HorizonProfile at_a = ComputeHorizon(w, a, o), at_b = ComputeHorizon(w, b, o);
+    // Most of b's bins are hinted, each below its horizon.
+    const std::vector<double> hints = HorizonHints(HorizonPoints(at_a), b, o);
+    int hinted = 0, inside = 0;
+    for (int i = 0; i < at_b.size(); ++i) {
+      if (!std::isfinite(at_b.elevation_deg[i])) continue;
+      ++inside;
+      if (!std::isfinite(hints[i])) continue;
+      ++hinted;
+      EXPECT_LT(hints[i], std::tan(DegToRad(at_b.elevation_deg[i]))) << "bin " << i;
+    }
+    EXPECT_GT(hinted, 0.6 * inside);
+    expect_same(at_b, ComputeHorizonNear(w, b, o, at_a));
+    // Hints above the terrain in some bins: the same horizon all the same.
+    std::vector<double> high = hints;
+    for (int i = 0; i < at_b.size(); i += 7)
+      if (std::isfinite(at_b.elevation_deg[i])) high[i] = std::tan(DegToRad(at_b.elevation_deg[i])) + 0.01;
+    HorizonOptions hinted_high = o;
+    hinted_high.hint_tan_el = &high;
+    expect_same(at_b, ComputeHorizon(w, b, hinted_high));
+  }
+  HorizonOptions bad;
+  const std::vector<double> short_hints(10, 0.0);
+  bad.hint_tan_el = &short_hints;
+  EXPECT_THROW(bad.Check(), InvalidArgument);
+}
+
 // A projected grid's posts carry their own sines and cosines
 // (DemGrid::post_trig, from IndexTrig): the sweep forms those of each
 // post's longitude difference from the observer by the difference

@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <memory>
 #include <mutex>
 #include <opencv2/core.hpp>
 #include <sstream>
@@ -228,9 +229,24 @@ double DistanceM(double lat0, double lon0, double lat1, double lon1) {
   return LocalFrame({lat0, lon0, 0.0}).EnuFromGeodetic({lat1, lon1, 0.0}).head<2>().norm();
 }
 
+// A viewpoint's horizon points (HorizonPoints): hints for its neighbours' horizons.
+using HintPoints = std::shared_ptr<const std::vector<Eigen::Vector3d>>;
+
 struct Scored {
   double lat = 0, lon = 0, cost = INFINITY, azimuth = 0, hfov = 0, pitch = 0, coarse_cost = INFINITY;
+  HintPoints points;  // when kept
 };
+
+// The nearest of `places` (with .lat, .lon, .points) that has points, or null.
+template <typename Place>
+const std::vector<Eigen::Vector3d>* NearestPoints(const std::vector<Place>& places, double lat, double lon) {
+  const std::vector<Eigen::Vector3d>* out = nullptr;
+  double best = INFINITY;
+  for (const Place& p : places)
+    if (p.points && DistanceM(lat, lon, p.lat, p.lon) < best)
+      best = DistanceM(lat, lon, p.lat, p.lon), out = p.points.get();
+  return out;
+}
 
 // The opening angles tried: the registration's window in steps of `factor`.
 std::vector<double> HfovsToTry(double lo, double hi, double factor) {
@@ -318,9 +334,12 @@ LocateResult LocateInWindow(const TerrainWindow& given_window, const cv::Mat& im
   const double agl = options.site.agl_m.value_or(kDefaultEyeHeightM);
   // The profiles' fit at a viewpoint: all of them, or (`near` given) those
   // within 4 deg of its pitch, over azimuths within 4 deg of its own.
+  // Its horizon hinted by `hint` (HorizonPoints of a neighbour's on `w`),
+  // whose own points are kept with `keep`.
   auto score = [&](const TerrainWindow& w, double lat, double lon, double hstep, double max_distance,
                    const std::vector<Profile>& profiles, double az_step, double min_distance = 0.5,
-                   const Scored* near = nullptr) {
+                   const Scored* near = nullptr, const std::vector<Eigen::Vector3d>* hint = nullptr,
+                   bool keep = false) {
     Scored s;
     s.lat = lat, s.lon = lon;
     const std::optional<double> ground = window.HeightAt(lat, lon);
@@ -331,7 +350,11 @@ LocateResult LocateInWindow(const TerrainWindow& given_window, const cv::Mat& im
     ho.min_distance_m = min_distance;
     ho.refraction = options.site.refraction;
     ho.num_threads = 1;
-    const HorizonProfile hp = ComputeHorizon(w, {lat, lon, *ground + agl}, ho);
+    const GeodeticPoint eye{lat, lon, *ground + agl};
+    std::vector<double> hints;
+    if (hint) hints = HorizonHints(*hint, eye, ho), ho.hint_tan_el = &hints;
+    const HorizonProfile hp = ComputeHorizon(w, eye, ho);
+    if (keep) s.points = std::make_shared<const std::vector<Eigen::Vector3d>>(HorizonPoints(hp));
     for (const Profile& p : profiles) {
       if (near && std::abs(p.pitch_deg - near->pitch) > 4.01) continue;
       const auto [cost, az] = near ? MatchProfile(p, hp.elevation_deg, hstep, az_step, near->azimuth, 4.0)
@@ -352,6 +375,7 @@ LocateResult LocateInWindow(const TerrainWindow& given_window, const cv::Mat& im
   // 1. Coarse grid.
   t0 = Clock::now();
   std::vector<Scored> cands;
+  std::vector<uint8_t> even;  // on every other row and column
   const int n = static_cast<int>(std::ceil(radius / grid));
   for (int j = -n; j <= n; ++j)
     for (int i = -n; i <= n; ++i) {
@@ -361,12 +385,26 @@ LocateResult LocateInWindow(const TerrainWindow& given_window, const cv::Mat& im
       Scored s;
       s.lat = p.lat_deg, s.lon = p.lon_deg;
       cands.push_back(s);
+      even.push_back(i % 2 == 0 && j % 2 == 0);
     }
   if (cands.empty()) throw InvalidArgument("locate: no DEM data inside the search area");
-  run_all(cands, [&](const Scored& s) {
+  {
+    // The places on every other row and column first; the others' horizons
+    // hinted by the nearest of those (the same horizons, sooner).
     // The pooled posts around the viewpoint are not its ground: left out.
-    return score(coarse, s.lat, s.lon, 1.0, options.coarse_max_distance_m, coarse_profiles, 1.0, options.coarse_post_m);
-  });
+    std::vector<Scored> first, rest;
+    for (size_t k = 0; k < cands.size(); ++k) (even[k] ? first : rest).push_back(cands[k]);
+    run_all(first, [&](const Scored& s) {
+      return score(coarse, s.lat, s.lon, 1.0, options.coarse_max_distance_m, coarse_profiles, 1.0,
+                   options.coarse_post_m, nullptr, nullptr, true);
+    });
+    run_all(rest, [&](const Scored& s) {
+      return score(coarse, s.lat, s.lon, 1.0, options.coarse_max_distance_m, coarse_profiles, 1.0,
+                   options.coarse_post_m, nullptr, NearestPoints(first, s.lat, s.lon));
+    });
+    for (size_t k = 0, a = 0, b = 0; k < cands.size(); ++k) cands[k] = even[k] ? first[a++] : rest[b++];
+    for (Scored& s : cands) s.points.reset();
+  }
   out.coarse_viewpoints = static_cast<int>(cands.size());
   std::sort(cands.begin(), cands.end(), [](const Scored& a, const Scored& b) { return a.cost < b.cost; });
   std::vector<Scored> seeds;  // distinct: at least 3 grid steps apart
@@ -408,9 +446,16 @@ LocateResult LocateInWindow(const TerrainWindow& given_window, const cv::Mat& im
     for (const auto& [step, half] : {std::pair{grid / 2, 2}, std::pair{grid / 4, 1}}) {
       const Scored seed = fine[k];
       std::vector<Scored> local = local_grid(seed, step, half);
+      // The centre first; the others' horizons hinted by its.
+      const size_t centre = local.size() / 2;
+      local[centre] = score(window, local[centre].lat, local[centre].lon, 0.25, options.coarse_max_distance_m,
+                            fine_profiles, 0.25, 0.5, &seed, nullptr, true);
+      const std::vector<Eigen::Vector3d>* hint = local[centre].points.get();
       run_all(local, [&](const Scored& s) {
-        return score(window, s.lat, s.lon, 0.25, options.coarse_max_distance_m, fine_profiles, 0.25, 0.5, &seed);
+        if (s.points) return s;  // the centre
+        return score(window, s.lat, s.lon, 0.25, options.coarse_max_distance_m, fine_profiles, 0.25, 0.5, &seed, hint);
       });
+      local[centre].points.reset();
       out.fine_viewpoints += static_cast<int>(local.size());
       const double cc = fine[k].coarse_cost;
       fine[k] = best_of(local);
@@ -457,6 +502,7 @@ LocateResult LocateInWindow(const TerrainWindow& given_window, const cv::Mat& im
     bool informative = false;  // enough informative columns to tell the pose there
     std::string message;
     double azimuth = NAN, pitch = NAN;
+    HintPoints points;  // its horizon's: hints for its neighbours'
   };
   // Widens c's equal-fit spreads by a place that fits about as well.
   auto widen = [](LocateCandidate& c, double lat, double lon, double azimuth, double pitch) {
@@ -464,14 +510,20 @@ LocateResult LocateInWindow(const TerrainWindow& given_window, const cv::Mat& im
     c.orientation_spread_deg = std::max({c.orientation_spread_deg, std::abs(pitch - c.registered_pitch_deg),
                                          std::abs(std::remainder(azimuth - c.registered_azimuth_deg, 360.0))});
   };
-  auto register_at = [&](double lat, double lon, const RegistrationOptions& ro) {
+  // Its horizon hinted by `hint` (a neighbour's HorizonPoints).
+  auto register_at = [&](double lat, double lon, const RegistrationOptions& ro,
+                         const std::vector<Eigen::Vector3d>* hint = nullptr) {
     Polished p;
     p.lat = lat, p.lon = lon;
     const std::optional<double> ground = window.HeightAt(lat, lon);
     if (!ground) return p;
     HorizonOptions ho = so.horizon_options();
     ho.num_threads = 1;
-    const HorizonProfile hp = ComputeHorizon(window, {lat, lon, *ground + agl}, ho);
+    const GeodeticPoint eye{lat, lon, *ground + agl};
+    std::vector<double> hints;
+    if (hint) hints = HorizonHints(*hint, eye, ho), ho.hint_tan_el = &hints;
+    const HorizonProfile hp = ComputeHorizon(window, eye, ho);
+    p.points = std::make_shared<const std::vector<Eigen::Vector3d>>(HorizonPoints(hp));
     const Registration r = RegisterImage(image, skyline, hp, ro);
     p.misfit = std::isfinite(r.misfit) ? r.misfit : INFINITY;
     p.registered = r.registered;
@@ -494,7 +546,36 @@ LocateResult LocateInWindow(const TerrainWindow& given_window, const cv::Mat& im
         if (DistanceM(places[q].lat, places[q].lon, seen[t].lat, seen[t].lon) < 0.5) from_seen[q] = static_cast<int>(t);
       if (from_seen[q] < 0) todo.push_back(places[q]);
     }
-    run_all(todo, [&](const Polished& p) { return register_at(p.lat, p.lon, polish_ro); });
+    // Each horizon hinted by the nearest place seen; when none was, the one
+    // nearest the middle of the places first, alone.
+    if (!todo.empty() && !NearestPoints(seen, todo[0].lat, todo[0].lon)) {
+      double lat = 0, lon = 0;
+      for (const Polished& p : todo) lat += p.lat / todo.size(), lon += p.lon / todo.size();
+      size_t mid = 0;
+      for (size_t q = 1; q < todo.size(); ++q)
+        if (DistanceM(lat, lon, todo[q].lat, todo[q].lon) < DistanceM(lat, lon, todo[mid].lat, todo[mid].lon)) mid = q;
+      todo[mid] = register_at(todo[mid].lat, todo[mid].lon, polish_ro);
+    }
+    std::vector<const Polished*> sources;
+    for (const Polished& p : seen) sources.push_back(&p);
+    for (const Polished& p : todo)
+      if (p.points) sources.push_back(&p);
+    auto nearest = [&](const Polished& p) -> const std::vector<Eigen::Vector3d>* {
+      const Polished* best = nullptr;
+      for (const Polished* q : sources)
+        if (q->points &&
+            (!best || DistanceM(p.lat, p.lon, q->lat, q->lon) < DistanceM(p.lat, p.lon, best->lat, best->lon)))
+          best = q;
+      return best ? best->points.get() : nullptr;
+    };
+    std::vector<const std::vector<Eigen::Vector3d>*> hint_of(todo.size());
+    for (size_t q = 0; q < todo.size(); ++q) hint_of[q] = todo[q].points ? nullptr : nearest(todo[q]);
+    std::vector<size_t> order(todo.size());
+    for (size_t q = 0; q < todo.size(); ++q) order[q] = q;
+    run_all(order, [&](size_t q) {
+      if (!todo[q].points) todo[q] = register_at(todo[q].lat, todo[q].lon, polish_ro, hint_of[q]);
+      return q;
+    });
     for (size_t q = 0, next = 0; q < places.size(); ++q) places[q] = from_seen[q] >= 0 ? seen[from_seen[q]] : todo[next++];
     out.fine_viewpoints += static_cast<int>(todo.size());
     seen.insert(seen.end(), places.begin(), places.end());
@@ -561,7 +642,7 @@ LocateResult LocateInWindow(const TerrainWindow& given_window, const cv::Mat& im
     // they register as well (then the answer is ambiguous).
     const bool polish = i == 0 || c.cost <= kRunnerUpCostRatio * out.candidates[0].cost;
     Polished& at = polished[i];
-    at = Polished{c.lat_deg, c.lon_deg, INFINITY, false, false, "", NAN, NAN};
+    at = Polished{c.lat_deg, c.lon_deg, INFINITY, false, false, "", NAN, NAN, nullptr};
     if (polish)
       pattern(at, seen_of[i], i == 0 ? 0 : 4);
     else
@@ -667,7 +748,7 @@ LocateResult LocateInWindow(const TerrainWindow& given_window, const cv::Mat& im
     c.lat_deg = to.lat_deg, c.lon_deg = to.lon_deg, c.cost = refused.cost, c.coarse_cost = refused.coarse_cost;
     c.azimuth_deg = refused.registered_azimuth_deg, c.hfov_deg = refused.hfov_deg;
     out.candidates.insert(out.candidates.begin() + tries, c);
-    polished.push_back(Polished{to.lat_deg, to.lon_deg, INFINITY, false, false, "", NAN, NAN});
+    polished.push_back(Polished{to.lat_deg, to.lon_deg, INFINITY, false, false, "", NAN, NAN, nullptr});
     seen_of.emplace_back();
     const int k = tries++;
     pattern(polished[k], seen_of[k], 0);

@@ -124,7 +124,8 @@ PositionEstimate RefinePosition(const Site& site, const Skyline& skyline, const 
       // only for small moves.
       for (int tries = 0; tries < 2 && step.norm() >= po.converged_m && used < budget && !accepted;
            ++tries, step *= 0.5) {
-        HorizonProfile trial = ComputeHorizon(site.window(), frame.GeodeticFromEnu(out.offset + step), ho);
+        HorizonProfile trial =
+            ComputeHorizonNear(site.window(), frame.GeodeticFromEnu(out.offset + step), ho, out.horizon);
         ++used;
         const PoseAndPositionFit judged =
             FitPoseAndPosition(skyline, trial, fit.pose, fit.focal_px, fit.k1, free_k1, fix_focal, out.offset + step,
@@ -154,7 +155,8 @@ PositionEstimate RefinePosition(const Site& site, const Skyline& skyline, const 
   };
   HorizonProfile start = start_horizon ? *start_horizon : site.horizon();
   if (!start_horizon && start_offset_enu_m != Eigen::Vector3d::Zero())
-    start = ComputeHorizon(site.window(), frame.GeodeticFromEnu(start_offset_enu_m), ho), ++est.horizons;
+    start = ComputeHorizonNear(site.window(), frame.GeodeticFromEnu(start_offset_enu_m), ho, site.horizon()),
+    ++est.horizons;
   // All three axes free first; then, when only some are observable, those
   // alone from the start (a weak axis left free trades against the
   // orientation and drags the others: near terrain straight ahead tells the
@@ -175,7 +177,7 @@ PositionEstimate RefinePosition(const Site& site, const Skyline& skyline, const 
     for (double k : {-1.5, 1.5}) {
       const Eigen::Vector3d at = start_offset_enu_m + Eigen::Vector3d(0.0, 0.0, k * prior(2));
       if (ground && est.given.height_m + at.z() < *ground + 0.5) continue;
-      HorizonProfile h = ComputeHorizon(site.window(), frame.GeodeticFromEnu(at), ho);
+      HorizonProfile h = ComputeHorizonNear(site.window(), frame.GeodeticFromEnu(at), ho, start);
       ++est.horizons;
       const PoseAndPositionFit f = FitPoseAndPosition(skyline, h, first.pose, first.focal_px, k1, free_k1, fix_focal,
                                                       at, prior, judge, scale, 6, held);

@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cmath>
 #include <iomanip>
+#include <memory>
 #include <optional>
 #include <sstream>
 #include <vector>
@@ -163,10 +164,17 @@ PositionCheck CheckPositionConsistency(const Site& site, const HorizonProfile& h
     Eigen::Vector2d en{0.0, 0.0};
     double cost = INFINITY;
     CameraPose pose{};  // the best pose there
+    std::shared_ptr<const std::vector<Eigen::Vector3d>> points;  // its horizon's (HorizonPoints): hints
   };
   // The DEM the places' horizons sweep (the wide look's indexed copy).
   const TerrainWindow* sweep_window = &site.window();
   std::optional<TerrainWindow> indexed;
+  const auto given_points = std::make_shared<const std::vector<Eigen::Vector3d>>(HorizonPoints(horizon));
+  // Every place fitted so far: the pattern's rings come back to places
+  // already fitted (the centre it left, the first rings' places), which
+  // are taken from here instead of computed again; their horizons hint
+  // their neighbours'.
+  std::vector<Place> fitted;
   // The horizon at a place: the sector of the given one (the same bins,
   // within the reach) or computed.
   auto horizon_at = [&](const Eigen::Vector2d& en) -> std::optional<HorizonProfile> {
@@ -182,23 +190,29 @@ PositionCheck CheckPositionConsistency(const Site& site, const HorizonProfile& h
     const std::optional<double> ground = sweep_window->HeightAt(g.lat_deg, g.lon_deg);
     if (!ground) return std::nullopt;
     g.height_m = altitude_given ? std::max(given_eye, *ground + kDefaultEyeHeightM) : *ground + given_agl;
-    return ComputeHorizon(*sweep_window, g, ho);
+    // The horizon of the nearest place fitted before (or the given one),
+    // seen from here, culls the terrain below it sooner.
+    const std::vector<Eigen::Vector3d>* source = given_points.get();
+    double nearest = en.norm();
+    for (const Place& f : fitted)
+      if (f.points && (f.en - en).norm() < nearest) nearest = (f.en - en).norm(), source = f.points.get();
+    const std::vector<double> hints = HorizonHints(*source, g, ho);
+    HorizonOptions hinted = ho;
+    hinted.hint_tan_el = &hints;
+    return ComputeHorizon(*sweep_window, g, hinted);
   };
   // The best pose's cost at each place (the search's, under the DEM error
   // model as given: comparable between places).
   auto fit = [&](Place& p) {
     std::optional<HorizonProfile> h = horizon_at(p.en);
     if (!h) return;
+    p.points = std::make_shared<const std::vector<Eigen::Vector3d>>(HorizonPoints(*h));
     HoldSectorEdges(*h);
     const Registration r = Register(skyline, *h, ro);
     if (r.candidates.empty()) return;
     p.cost = r.candidates[0].cost;
     p.pose = r.candidates[0].pose;
   };
-  // Every place fitted so far: the pattern's rings come back to places
-  // already fitted (the centre it left, the first rings' places), which
-  // are taken from here instead of computed again.
-  std::vector<Place> fitted;
   int visited = 0;  // places the pattern has visited, fitted before or not: what the budget counts
   auto fit_all = [&](std::vector<Place>& places) {
     visited += static_cast<int>(places.size());
@@ -223,7 +237,7 @@ PositionCheck CheckPositionConsistency(const Site& site, const HorizonProfile& h
     for (int k = 0; k < co.directions; ++k) {
       const double a = 2.0 * kPi * k / co.directions;
       const Eigen::Vector2d en = from + radius * Eigen::Vector2d(std::sin(a), std::cos(a));
-      if (en.norm() <= co.max_offset_m) places.push_back({en, INFINITY, CameraPose{}});
+      if (en.norm() <= co.max_offset_m) places.push_back({en, INFINITY, CameraPose{}, nullptr});
     }
   };
 
@@ -302,7 +316,7 @@ PositionCheck CheckPositionConsistency(const Site& site, const HorizonProfile& h
       for (int c = -rows - 1; c <= rows + 1; ++c) {
         const Eigen::Vector2d en((c + 0.5 * (r & 1)) * s, r * row);
         if (en.norm() > co.first_step_m + 0.5 * s && en.norm() <= wide_radius && en.norm() <= co.max_offset_m)
-          places.push_back({en, INFINITY, CameraPose{}});
+          places.push_back({en, INFINITY, CameraPose{}, nullptr});
       }
     // Nearest first, a few places at a time, until one passes the limit:
     // refused then whatever the rest would show (the pattern only goes

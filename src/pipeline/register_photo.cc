@@ -355,7 +355,7 @@ void RefinePhotoPosition(const Site& site, const cv::Mat& image, const PositionO
     HorizonOptions ho = site.horizon_options();
     ho.pool = pool;
     const HorizonProfile start_horizon =
-        ComputeHorizon(site.window(), LocalFrame(site.observer()).GeodeticFromEnu(start), ho);
+        ComputeHorizonNear(site.window(), LocalFrame(site.observer()).GeodeticFromEnu(start), ho, site.horizon());
     const Registration lifted = RegisterImage(image, out.skyline, start_horizon, ro);
     est = RefinePosition(site, out.skyline, lifted, ro, position_options, pool, start, &start_horizon);
     if (est.offset_enu_m == Eigen::Vector3d::Zero()) {
