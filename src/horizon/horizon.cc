@@ -385,11 +385,16 @@ std::vector<double> HorizonHints(const std::vector<Eigen::Vector3d>& points_ecef
 }
 
 HorizonProfile ComputeHorizonNear(const TerrainWindow& terrain, const GeodeticPoint& observer,
-                                  const HorizonOptions& options, const HorizonProfile& nearby) {
-  const std::vector<double> hints = HorizonHints(HorizonPoints(nearby), observer, options);
+                                  const HorizonOptions& options, const std::vector<Eigen::Vector3d>& nearby_points) {
+  const std::vector<double> hints = HorizonHints(nearby_points, observer, options);
   HorizonOptions hinted = options;
   hinted.hint_tan_el = &hints;
   return ComputeHorizon(terrain, observer, hinted);
+}
+
+HorizonProfile ComputeHorizonNear(const TerrainWindow& terrain, const GeodeticPoint& observer,
+                                  const HorizonOptions& options, const HorizonProfile& nearby) {
+  return ComputeHorizonNear(terrain, observer, options, HorizonPoints(nearby));
 }
 
 }  // namespace horizonreg

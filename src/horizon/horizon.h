@@ -106,6 +106,8 @@ std::vector<double> HorizonHints(const std::vector<Eigen::Vector3d>& points_ecef
 // ComputeHorizon hinted by a horizon computed nearby on the same terrain
 // (HorizonHints of its HorizonPoints): the same result, sooner.
 HorizonProfile ComputeHorizonNear(const TerrainWindow& terrain, const GeodeticPoint& observer,
+                                  const HorizonOptions& options, const std::vector<Eigen::Vector3d>& nearby_points);
+HorizonProfile ComputeHorizonNear(const TerrainWindow& terrain, const GeodeticPoint& observer,
                                   const HorizonOptions& options, const HorizonProfile& nearby);
 
 // One inner ridge line crossing of an azimuth: terrain that forms a

@@ -351,9 +351,7 @@ LocateResult LocateInWindow(const TerrainWindow& given_window, const cv::Mat& im
     ho.refraction = options.site.refraction;
     ho.num_threads = 1;
     const GeodeticPoint eye{lat, lon, *ground + agl};
-    std::vector<double> hints;
-    if (hint) hints = HorizonHints(*hint, eye, ho), ho.hint_tan_el = &hints;
-    const HorizonProfile hp = ComputeHorizon(w, eye, ho);
+    const HorizonProfile hp = hint ? ComputeHorizonNear(w, eye, ho, *hint) : ComputeHorizon(w, eye, ho);
     if (keep) s.points = std::make_shared<const std::vector<Eigen::Vector3d>>(HorizonPoints(hp));
     for (const Profile& p : profiles) {
       if (near && std::abs(p.pitch_deg - near->pitch) > 4.01) continue;
@@ -520,9 +518,7 @@ LocateResult LocateInWindow(const TerrainWindow& given_window, const cv::Mat& im
     HorizonOptions ho = so.horizon_options();
     ho.num_threads = 1;
     const GeodeticPoint eye{lat, lon, *ground + agl};
-    std::vector<double> hints;
-    if (hint) hints = HorizonHints(*hint, eye, ho), ho.hint_tan_el = &hints;
-    const HorizonProfile hp = ComputeHorizon(window, eye, ho);
+    const HorizonProfile hp = hint ? ComputeHorizonNear(window, eye, ho, *hint) : ComputeHorizon(window, eye, ho);
     p.points = std::make_shared<const std::vector<Eigen::Vector3d>>(HorizonPoints(hp));
     const Registration r = RegisterImage(image, skyline, hp, ro);
     p.misfit = std::isfinite(r.misfit) ? r.misfit : INFINITY;
@@ -556,20 +552,11 @@ LocateResult LocateInWindow(const TerrainWindow& given_window, const cv::Mat& im
         if (DistanceM(lat, lon, todo[q].lat, todo[q].lon) < DistanceM(lat, lon, todo[mid].lat, todo[mid].lon)) mid = q;
       todo[mid] = register_at(todo[mid].lat, todo[mid].lon, polish_ro);
     }
-    std::vector<const Polished*> sources;
-    for (const Polished& p : seen) sources.push_back(&p);
+    std::vector<Polished> sources = seen;
     for (const Polished& p : todo)
-      if (p.points) sources.push_back(&p);
-    auto nearest = [&](const Polished& p) -> const std::vector<Eigen::Vector3d>* {
-      const Polished* best = nullptr;
-      for (const Polished* q : sources)
-        if (q->points &&
-            (!best || DistanceM(p.lat, p.lon, q->lat, q->lon) < DistanceM(p.lat, p.lon, best->lat, best->lon)))
-          best = q;
-      return best ? best->points.get() : nullptr;
-    };
+      if (p.points) sources.push_back(p);
     std::vector<const std::vector<Eigen::Vector3d>*> hint_of(todo.size());
-    for (size_t q = 0; q < todo.size(); ++q) hint_of[q] = todo[q].points ? nullptr : nearest(todo[q]);
+    for (size_t q = 0; q < todo.size(); ++q) hint_of[q] = NearestPoints(sources, todo[q].lat, todo[q].lon);
     std::vector<size_t> order(todo.size());
     for (size_t q = 0; q < todo.size(); ++q) order[q] = q;
     run_all(order, [&](size_t q) {

@@ -196,10 +196,7 @@ PositionCheck CheckPositionConsistency(const Site& site, const HorizonProfile& h
     double nearest = en.norm();
     for (const Place& f : fitted)
       if (f.points && (f.en - en).norm() < nearest) nearest = (f.en - en).norm(), source = f.points.get();
-    const std::vector<double> hints = HorizonHints(*source, g, ho);
-    HorizonOptions hinted = ho;
-    hinted.hint_tan_el = &hints;
-    return ComputeHorizon(*sweep_window, g, hinted);
+    return ComputeHorizonNear(*sweep_window, g, ho, *source);
   };
   // The best pose's cost at each place (the search's, under the DEM error
   // model as given: comparable between places).
