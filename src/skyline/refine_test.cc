@@ -377,6 +377,40 @@ TEST(IsolatedRunColumns, MarksShortStretchesBetweenLongGaps) {
   EXPECT_TRUE(IsolatedRunColumns({}, 8, 10).empty());
 }
 
+// Column fits along a level ridge at row 150 of a 648-row image, 972
+// columns (AKJNC_20120605's size), bright ground.
+std::vector<ColumnFit> LevelRidge() {
+  std::vector<ColumnFit> fits(972);
+  for (ColumnFit& f : fits) f.y = 150.0, f.ground_l = 80.0;
+  return fits;
+}
+
+TEST(FindOccluders, ASpikeCutByTheImagesEdgeIsAnOccluder) {
+  // A pole rising 40 px near the right edge, another near the left.
+  std::vector<ColumnFit> fits = LevelRidge();
+  for (int x = 900; x < 972; ++x) fits[x].y = 110.0;
+  for (int x = 0; x < 60; ++x) fits[x].y = 110.0;
+  const std::vector<uint8_t> occ = FindOccluders(fits, 648);
+  EXPECT_TRUE(std::all_of(occ.begin() + 902, occ.end(), [](uint8_t o) { return o == 1; }));
+  EXPECT_TRUE(std::all_of(occ.begin(), occ.begin() + 58, [](uint8_t o) { return o == 1; }));
+  EXPECT_EQ(std::count(occ.begin() + 100, occ.begin() + 850, 1), 0);
+}
+
+TEST(FindOccluders, ADipNearTheImagesEdgeIsNone) {
+  // The boundary fell 15 px onto an inner edge for 20 columns, then rose 20
+  // px back above the ridge's level before it: near the right edge, where
+  // its rise once read as a pole cut by the edge (a copy of AKJNC_20120605
+  // a third of a stop darker lost its last 100 columns), and mirrored near
+  // the left edge.
+  std::vector<ColumnFit> fits = LevelRidge();
+  for (int x = 861; x < 878; ++x) fits[x].y = 164.0;
+  for (int x = 878; x < 972; ++x) fits[x].y = 144.0;
+  for (int x = 0; x < 40; ++x) fits[x].y = 144.0;
+  for (int x = 40; x < 58; ++x) fits[x].y = 164.0;
+  const std::vector<uint8_t> occ = FindOccluders(fits, 648);
+  EXPECT_EQ(std::count(occ.begin(), occ.end(), 1), 0);
+}
+
 // A sky's smooth gradient over a darker, smoothly shaded ground, 8-bit,
 // with Gaussian noise of `sigma` levels per channel (seeded).
 cv::Mat GradientWithNoise(double sigma) {
