@@ -139,8 +139,10 @@ Modes (each a per-photo table and a summary):
             changed as another camera, exposure or weather would change it:
             1.7 stops darker, 1.3 stops brighter (clipped), sensor noise,
             soft focus, vignetting, a warm and a cool white balance, a grey
-            veil (JPEG quality 95, EXIF kept). Per change: the photos within
-            0.5 deg (--floors photometric=N, each change; default 0), the
+            veil, a thick veil, an overcast sky's grey light (JPEG quality
+            95, EXIF kept). Per change: the photos within 0.5 deg (--floors
+            photometric=N, each change, or photometric-KEY=N for change KEY;
+            default 0), the
             false ones (0) and the skyline's traced columns within 2 px
             (over all changes: --floors photometric-skyline=W, default 0)
   wrong-photometric  (not in the default set; minutes) the wrong probes on
@@ -787,6 +789,13 @@ def _vignetted(np, im):
     return _encoded(np, _linear(np, im) * (np.cos(np.arctan(0.9 * r)) ** 4)[..., None])
 
 
+def _overcast(cv2, np, im):
+    lab = cv2.cvtColor(im, cv2.COLOR_BGR2Lab).astype(np.float32)
+    lab[..., 1:] = 128.0 + 0.3 * (lab[..., 1:] - 128.0)
+    grey = cv2.cvtColor(np.clip(lab + 0.5, 0, 255).astype(np.uint8), cv2.COLOR_Lab2BGR).astype(np.float32)
+    return np.clip(0.75 * grey + 50.0, 0, 255).astype(np.uint8)
+
+
 PHOTOMETRIC = [
     ("dark", "1.7 stops under", lambda cv2, np, im: _encoded(np, _linear(np, im) * 0.3)),
     ("bright", "1.3 stops over (clipped)", lambda cv2, np, im: _encoded(np, _linear(np, im) * 2.5)),
@@ -800,6 +809,9 @@ PHOTOMETRIC = [
         np, _linear(np, im) * np.array([1.3, 1.0, 0.75], np.float32))),
     ("veil", "a grey veil (flare, a dirty window: 60% scene, 40% grey 200)", lambda cv2, np, im: np.clip(
         0.6 * im.astype(np.float32) + 80.0, 0, 255).astype(np.uint8)),
+    ("thick", "a thick veil (haze, flare: 50% scene, 50% grey 200)", lambda cv2, np, im: np.clip(
+        0.5 * im.astype(np.float32) + 100.0, 0, 255).astype(np.uint8)),
+    ("overcast", "a grey sky's light (chroma x0.3, then 25% grey 200)", lambda cv2, np, im: _overcast(cv2, np, im)),
 ]
 
 
@@ -890,7 +902,7 @@ def photometric_modes(binary, shared, photos, modes, tmpdir, pool, jobs, floors,
             all_traced, all_within, all_good = all_traced + traced, all_within + within, all_good + good
             print(f"{key:<10}{good:>8}/{len(photos):<2}{len(false):>6}{100 * w:>8.1f}%{100 * given / max(traced, 1):>6.1f}%"
                   f"  {' '.join(missed)}{' FALSE: ' + ' '.join(false) if false else ''}")
-            if check and (good < floors.get("photometric", 0) or false):
+            if check and (good < floors.get("photometric-" + key, floors.get("photometric", 0)) or false):
                 print(f"FAIL: photometric {key} ({what}) misses its floor or has a false registration")
                 ok = False
         w = all_within / all_traced if all_traced else float("nan")

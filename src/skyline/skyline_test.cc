@@ -472,6 +472,38 @@ TEST(ExtractSkyline, FaintSoftRidgeInGreyIsNotFog) {
   EXPECT_GE(good, w * 80 / 100);
 }
 
+// A far ridge under a grey veil (haze, flare, an overcast sky's light): a
+// faint (about 6 delta E) edge softened over 6 rows under a pale grey sky,
+// the slope below as faint as its edge. Faint, soft and colourless as fog
+// is, but nothing comes out of the sky's colour below it: not fog (copies of
+// the real photos under such a veil were nulled whole). Terrain coming out
+// of the same sky over 60 rows below the same edge stays fog.
+TEST(ExtractSkyline, FaintRidgeUnderAGreyVeilIsNotFog) {
+  const int w = 640, h = 400;
+  std::vector<double> ridge(w);
+  for (int x = 0; x < w; ++x) ridge[x] = 150.0 + 30.0 * std::sin(x / 70.0) + 9.0 * std::sin(x / 17.0);
+  const cv::Vec3d sky(196, 192, 190), veiled(180, 178, 177), clear(70, 105, 85);  // BGR
+  auto scene = [&](bool fog) {
+    cv::Mat img(h, w, CV_8UC3);
+    cv::RNG rng(5);
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x) {
+        const double t = std::clamp((y + 0.5 - ridge[x]) / 6.0 + 0.5, 0.0, 1.0);  // 0 sky .. 1 ridge, over 6 rows
+        const double out = fog ? std::clamp((y + 0.5 - ridge[x]) / 60.0, 0.0, 1.0) : 0.0;  // out of the fog below
+        const cv::Vec3d c = (1 - t) * sky + t * ((1 - out) * veiled + out * clear);
+        const double n = rng.gaussian(0.8);
+        img.at<cv::Vec3b>(y, x) = cv::Vec3b(cv::saturate_cast<uint8_t>(c[0] + n), cv::saturate_cast<uint8_t>(c[1] + n),
+                                            cv::saturate_cast<uint8_t>(c[2] + n));
+      }
+    return img;
+  };
+  const Skyline s = ExtractSkyline(scene(false), SkylineOptions{});
+  int good = 0;
+  for (int x = 0; x < w; ++x) good += std::isfinite(s.y[x]) && std::abs(s.y[x] - ridge[x]) <= 2.0;
+  EXPECT_GE(good, w * 80 / 100);
+  EXPECT_EQ(ExtractSkyline(scene(true), SkylineOptions{}).VisibleCount(), 0) << "terrain coming out of it is fog";
+}
+
 }  // namespace
 }  // namespace horizonreg
 
