@@ -811,7 +811,7 @@ PHOTOMETRIC = [
         0.6 * im.astype(np.float32) + 80.0, 0, 255).astype(np.uint8)),
     ("thick", "a thick veil (haze, flare: 50% scene, 50% grey 200)", lambda cv2, np, im: np.clip(
         0.5 * im.astype(np.float32) + 100.0, 0, 255).astype(np.uint8)),
-    ("overcast", "a grey sky's light (chroma x0.3, then 25% grey 200)", lambda cv2, np, im: _overcast(cv2, np, im)),
+    ("overcast", "a grey sky's light (chroma x0.3, then 25% grey 200)", _overcast),
 ]
 
 
