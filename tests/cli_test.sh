@@ -156,6 +156,28 @@ assert s["width"] == 1024 and s["height"] == 683 and len(s["y"]) == 1024 and len
 near = sum(1 for y, r in zip(s["y"], t["skyline_row"]) if y is not None and r is not None and 0 < r < 683 and abs(y - r) <= 2)
 assert near >= 0.9 * 1024, near
 PY
+  # `skyline --json` then `register --skyline` registers as `register` does
+  # alone: the JSON carries the edges the matching reads below raised
+  # boundaries ("y_alt"; without them zion_01 came 0.013 deg and 0.13 deg of
+  # opening angle away).
+  "$bin" skyline "$sc/zion_01.jpg" --json "$work/z_sky.json" \
+    && "$bin" register "$sc/zion_01.jpg" --dem "$shared/dem/zion_srtm.tif" --lat 37.368515 --lon -113.161021 --agl 1.7 \
+      --skyline "$work/z_sky.json" --json "$work/r2.json" \
+    && python3 - "$work/r.json" "$work/r2.json" "$work/z_sky.json" <<'PY' \
+    && ok "skyline --json then register --skyline: the pose register finds alone" || bad "skyline -> register --skyline"
+import json, sys
+a, b, s = (json.load(open(p)) for p in sys.argv[1:4])
+assert sum(v is not None for v in s["y_alt"]) > 50, "no y_alt"
+assert b["status"] == "registered", b
+for k, tol in [("azimuth_deg", 0.002), ("pitch_deg", 0.002), ("roll_deg", 0.002), ("hfov_deg", 0.01)]:
+    assert abs(a[k] - b[k]) <= tol, (k, a[k], b[k])
+PY
+  python3 -c "
+import json, sys
+s = json.load(open(sys.argv[1])); s['y_alt'] = s['y_alt'][:-1]; json.dump(s, open(sys.argv[2], 'w'))" \
+    "$work/z_sky.json" "$work/z_bad.json"
+  expect_exit2 "register --skyline with a short y_alt" register "$sc/zion_01.jpg" --dem "$shared/dem/zion_srtm.tif" \
+    --lat 37.368515 --lon -113.161021 --skyline "$work/z_bad.json" --json "$work/out.json"
   expect_exit2 "register unwritable --skyline-out" register "$sc/zion_01.jpg" --dem "$shared/dem/zion_srtm.tif" \
     --lat 37.368515 --lon -113.161021 --json "$work/out.json" --skyline-out "/nonexistent/dir/s.json"
   "$bin" register "$sc/zion_01.jpg" --dem "$shared/dem/zion_srtm.tif" --lat 37.368515 --lon -113.161021 \

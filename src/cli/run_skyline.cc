@@ -67,6 +67,19 @@ Skyline ReadSkylineJson(const std::string& path, int width, int height) {
     s.y[x] = v.get<double>();
     s.confidence[x] = has_conf && j["confidence"][x].is_number() ? std::clamp(j["confidence"][x].get<double>(), 0.0, 1.0) : 1.0;
   }
+  // The edges the matching reads below raised boundaries (SkylineJson), if any.
+  if (j.contains("y_alt")) {
+    if (!j["y_alt"].is_array() || j["y_alt"].size() != j["y"].size())
+      return bad("\"y_alt\" is not an array of one row or null per column");
+    s.y_alt.assign(width, NAN);
+    for (int x = 0; x < width; ++x) {
+      const auto& v = j["y_alt"][x];
+      if (v.is_null()) continue;
+      if (!v.is_number() || !std::isfinite(v.get<double>()) || v.get<double>() < -height || v.get<double>() > 2.0 * height)
+        return bad("y_alt[" + std::to_string(x) + "] is not a row number or null");
+      if (std::isfinite(s.y[x])) s.y_alt[x] = v.get<double>();
+    }
+  }
   return s;
 }
 

@@ -23,6 +23,14 @@ nlohmann::json SkylineJson(const Skyline& s) {
   }
   j["y"] = std::move(ys);
   j["confidence"] = std::move(cs);
+  // The clearer edge below a raised boundary, which the matching reads
+  // (Skyline::y_alt): written where any is set, so that `register
+  // --skyline` given this file matches what it would have extracted.
+  if (std::any_of(s.y_alt.begin(), s.y_alt.end(), [](double v) { return std::isfinite(v); })) {
+    nlohmann::json alt = nlohmann::json::array();
+    for (int x = 0; x < s.width; ++x) alt.push_back(Rounded(s.Alt(x), 2));
+    j["y_alt"] = std::move(alt);
+  }
   j["visible_columns"] = s.VisibleCount();
   return j;
 }
