@@ -4,6 +4,7 @@
 // the camera-file layout) and the skyline `register --skyline` reads (cli
 // ReadSkylineJson, for a 64 x 48 image).
 #include <algorithm>
+#include <cmath>
 #include <cstdlib>
 
 #include "cli/commands.h"
@@ -21,6 +22,10 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   fuzz::ExpectingBadInput([&] {
     const Skyline s = cli::ReadSkylineJson(path, 64, 48);
     if (s.y.size() != 64 || s.confidence.size() != 64) std::abort();
+    // y_alt: none, or one per column, set only under a boundary.
+    if (!s.y_alt.empty() && s.y_alt.size() != 64) std::abort();
+    for (int x = 0; x < 64; ++x)
+      if (std::isfinite(s.Alt(x)) && !std::isfinite(s.y[x])) std::abort();
   });
   return 0;
 }
