@@ -1,8 +1,8 @@
 // SPDX-License-Identifier: MIT
 #include <CLI/CLI.hpp>
-#include <iostream>
 #include <chrono>
 #include <fstream>
+#include <iostream>
 #include <nlohmann/json.hpp>
 
 #include "cli/commands.h"
@@ -58,27 +58,30 @@ Skyline ReadSkylineJson(const std::string& path, int width, int height) {
   s.height = height;
   s.y.assign(width, NAN);
   s.confidence.assign(width, 0.0);
-  const bool has_conf = j.contains("confidence") && j["confidence"].is_array() && j["confidence"].size() == j["y"].size();
+  const bool has_conf =
+      j.contains("confidence") && j["confidence"].is_array() && j["confidence"].size() == j["y"].size();
+  // Column x of array `key`: a row number, or NaN for null.
+  auto row = [&](const char* key, int x) {
+    const auto& v = j[key][x];
+    if (v.is_null()) return static_cast<double>(NAN);
+    if (!v.is_number() || !std::isfinite(v.get<double>()) || v.get<double>() < -height ||
+        v.get<double>() > 2.0 * height)
+      bad(std::string(key) + "[" + std::to_string(x) + "] is not a row number or null");
+    return v.get<double>();
+  };
   for (int x = 0; x < width; ++x) {
-    const auto& v = j["y"][x];
-    if (v.is_null()) continue;
-    if (!v.is_number() || !std::isfinite(v.get<double>()) || v.get<double>() < -height || v.get<double>() > 2.0 * height)
-      return bad("y[" + std::to_string(x) + "] is not a row number or null");
-    s.y[x] = v.get<double>();
-    s.confidence[x] = has_conf && j["confidence"][x].is_number() ? std::clamp(j["confidence"][x].get<double>(), 0.0, 1.0) : 1.0;
+    s.y[x] = row("y", x);
+    if (!std::isfinite(s.y[x])) continue;
+    s.confidence[x] =
+        has_conf && j["confidence"][x].is_number() ? std::clamp(j["confidence"][x].get<double>(), 0.0, 1.0) : 1.0;
   }
   // The edges the matching reads below raised boundaries (SkylineJson), if any.
   if (j.contains("y_alt")) {
     if (!j["y_alt"].is_array() || j["y_alt"].size() != j["y"].size())
       return bad("\"y_alt\" is not an array of one row or null per column");
     s.y_alt.assign(width, NAN);
-    for (int x = 0; x < width; ++x) {
-      const auto& v = j["y_alt"][x];
-      if (v.is_null()) continue;
-      if (!v.is_number() || !std::isfinite(v.get<double>()) || v.get<double>() < -height || v.get<double>() > 2.0 * height)
-        return bad("y_alt[" + std::to_string(x) + "] is not a row number or null");
-      if (std::isfinite(s.y[x])) s.y_alt[x] = v.get<double>();
-    }
+    for (int x = 0; x < width; ++x)
+      if (const double v = row("y_alt", x); std::isfinite(s.y[x])) s.y_alt[x] = v;
   }
   return s;
 }
