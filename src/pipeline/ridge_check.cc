@@ -106,6 +106,13 @@ std::vector<CameraPose> RidgeCheck::RuledOut() const {
   return out;
 }
 
+bool RidgesRuleOut(const RidgeSupport& best, const RidgeSupport& rival) {
+  if (best.points < kRidgeMinPoints || rival.points < kRidgeMinPoints) return false;
+  const double b = best.Share(), r = rival.Share();
+  return (b >= kRidgeMinBestShare && b >= kRidgeMinShareRatio * r) ||
+         (b >= kRidgeMinBestShareClear && b >= kRidgeClearShareRatio * r);
+}
+
 RidgeCheck CheckRidges(const PhotoEdges& edges, const HorizonProfile& horizon,
                        const std::vector<std::vector<Ridge>>& ridges, const Registration& reg,
                        const RegistrationOptions& options) {
@@ -122,8 +129,7 @@ RidgeCheck CheckRidges(const PhotoEdges& edges, const HorizonProfile& horizon,
     CameraIntrinsics kc = k;
     kc.focal_px = c.focal_px;
     RidgeCheck::Rival r{c, MeasureRidgeSupport(edges, horizon, ridges, c.pose, kc)};
-    r.ruled_out = out.best.points >= kRidgeMinPoints && r.support.points >= kRidgeMinPoints &&
-                  out.best.Share() >= kRidgeMinBestShare && out.best.Share() >= kRidgeMinShareRatio * r.support.Share();
+    r.ruled_out = RidgesRuleOut(out.best, r.support);
     out.rivals.push_back(r);
   }
   return out;

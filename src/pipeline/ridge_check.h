@@ -66,17 +66,26 @@ struct RidgeCheck {
   std::vector<CameraPose> RuledOut() const;  // the poses of the rivals ruled out
 };
 
+// Whether the ridges rule `rival` out against `best`: each measured over at
+// least kRidgeMinPoints points, and either the best's share is at least
+// kRidgeMinBestShare and kRidgeMinShareRatio times the rival's, or it is at
+// least kRidgeMinBestShareClear and kRidgeClearShareRatio times the
+// rival's (a weaker best against a rival the photo shows almost none of:
+// CG05_20050827_190000 without EXIF, best 0.43, its rivals 0.04-0.09,
+// where the share a textured glacier lends any line is about 0.3).
+inline constexpr double kRidgeMinBestShare = 0.45;
+inline constexpr double kRidgeMinShareRatio = 1.4;
+inline constexpr double kRidgeMinBestShareClear = 0.35;
+inline constexpr double kRidgeClearShareRatio = 3.0;
+inline constexpr int kRidgeMinPoints = 50;
+bool RidgesRuleOut(const RidgeSupport& best, const RidgeSupport& rival);
+
 // The ridge check of a registration refused as ambiguous (`reg`, its
 // candidates): each candidate that is another solution (more than
 // RegistrationOptions::kRuledOutDeg from the best in azimuth or pitch, and
 // not among options.ruled_out_rivals already: an earlier round's) and
-// costs less than min_ambiguity_ratio times the best's is ruled out when
-// the best's ridge support is at least kRidgeMinBestShare and
-// kRidgeMinShareRatio times the candidate's, each over at least
-// kRidgeMinPoints points.
-inline constexpr double kRidgeMinBestShare = 0.45;
-inline constexpr double kRidgeMinShareRatio = 1.4;
-inline constexpr int kRidgeMinPoints = 50;
+// costs less than min_ambiguity_ratio times the best's is ruled out where
+// RidgesRuleOut(best's support, its support).
 RidgeCheck CheckRidges(const PhotoEdges& edges, const HorizonProfile& horizon,
                        const std::vector<std::vector<Ridge>>& ridges, const Registration& reg,
                        const RegistrationOptions& options);

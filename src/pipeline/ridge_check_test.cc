@@ -99,5 +99,24 @@ TEST_F(RidgeCheckTest, RulesOutARivalTheRidgesContradictOnly) {
   EXPECT_TRUE(CheckRidges(flat, h, ridges, reg, RegistrationOptions{}).RuledOut().empty());
 }
 
+RidgeSupport Support(int points, double share) { return {points, static_cast<int>(std::lround(share * points))}; }
+
+TEST(RidgesRuleOut, AClearLeadOrAFarWeakerRival) {
+  // The first rule: best at least 0.45 and 1.4 times the rival's.
+  EXPECT_TRUE(RidgesRuleOut(Support(400, 0.60), Support(200, 0.40)));
+  EXPECT_FALSE(RidgesRuleOut(Support(400, 0.60), Support(200, 0.46)));
+  EXPECT_FALSE(
+      RidgesRuleOut(Support(400, 0.44), Support(200, 0.20)));  // best too weak for it, rival too strong for the second
+  // The second: best at least 0.35 and 3 times the rival's.
+  EXPECT_TRUE(RidgesRuleOut(Support(380, 0.426), Support(216, 0.093)));
+  EXPECT_FALSE(RidgesRuleOut(Support(380, 0.426), Support(216, 0.20)));
+  EXPECT_FALSE(
+      RidgesRuleOut(Support(380, 0.30), Support(216, 0.05)));  // below 0.35: the share any line gets on texture
+  // Too few points on either side: no ruling.
+  EXPECT_FALSE(RidgesRuleOut(Support(kRidgeMinPoints - 1, 0.9), Support(200, 0.0)));
+  EXPECT_FALSE(RidgesRuleOut(Support(400, 0.9), Support(kRidgeMinPoints - 1, 0.0)));
+  EXPECT_TRUE(RidgesRuleOut(Support(kRidgeMinPoints, 0.9), Support(kRidgeMinPoints, 0.0)));
+}
+
 }  // namespace
 }  // namespace horizonreg
