@@ -1211,7 +1211,7 @@ Skyline ExtractSceneSkyline(const cv::Mat& image, const SkylineOptions& options,
     // photos under a grey veil or an overcast sky's light, whose skyline any
     // eye sees, by 0.6-1.9 delta E (0.04-0.13 times theirs): 9 of 39 copies
     // under 50-60% grey or an overcast light and 2 of the 104 photometric
-    // copies (README, "A grey veil is not fog") were nulled whole. The noisy
+    // copies (docs/MEASUREMENTS.md, "A grey veil is not fog") were nulled whole. The noisy
     // and vignetted copies of CG05_20050811_190000, whose boundary lies on
     // the glacier front in part, read 0.41 and 0.45 but pass the contrast.
     if (clearest < fog_contrast && median_spread > soft &&
