@@ -62,6 +62,15 @@ Modes (each a per-photo table and a summary):
             webcam's timestamp strip (black, 28 rows per 1000 columns, white
             text) across its top: the strip is no scene (--floors banner=N);
             wrong-banner: the wrong probes on those copies
+  cloud     (not in the default set; seconds) plain on each photo under a
+            cap cloud: soft white ellipses over the highest fifth of the
+            skyline (the hand trace's, else the extracted one), hiding the
+            summit; ring-cloud: the ring on those copies (--floors cloud=N);
+            cloud-small, ring-cloud-small: a cloud over the highest tenth
+  sky-cloud (not in the default set; seconds) plain on each photo with a
+            white cumulus floating in its widest sky, a third of the sky's
+            height above the skyline (unchanged where the sky is under 60 px
+            per 1000 columns high); ring-sky-cloud: the ring on those copies
   turned    (not in the default set; seconds) plain on each photo stored a
             quarter turn anticlockwise with EXIF Orientation 6 and its
             recorded size the stored pixels' (a camera held upright): decoded
@@ -153,7 +162,8 @@ Modes (each a per-photo table and a summary):
             (> 1 deg; --floors ring-KEY=N, a ceiling, default 0); so too
             ring-reencode, ring-gray, ring-upscale2,
             ring-upscale4, ring-downscale2, ring-jpeg50, ring-jpeg30,
-            ring-banner, ring-turned on those modes' copies
+            ring-banner, ring-turned, ring-cloud, ring-cloud-small,
+            ring-sky-cloud on those modes' copies
   jpeg30-skyline  (not in the default set; seconds) the skyline of the
             quality-30 copies against the hand trace, as skyline (--floors
             jpeg30-skyline=F)
@@ -511,6 +521,62 @@ def cropped_copy(cv2, truth, source, path, where, share):
     t["yaw_deg"], t["pitch_deg"] = ray_through(cv2, truth, x0 + kept / 2.0, h / 2.0)
     t["hfov_deg"] = math.degrees(2.0 * math.atan(kept / (2.0 * truth["camera"]["fx_px"])))
     return t
+
+
+def cap_cloud(cv2, image, rows, share=0.2, seed=0):
+    """A cap cloud resting on the photo's highest stretch of skyline (`rows`:
+    the skyline row per column, None where unknown): fourteen soft white
+    ellipses over `share` of the width, from a fixed seed, blurred and
+    blended at up to 97% opacity, hiding the summit and the slopes beside
+    it (the boundary under it is not the terrain's)."""
+    import numpy as np
+    h, w = image.shape[:2]
+    s = w / 1000.0
+    ys = np.array([np.nan if v is None else float(v) for v in rows])
+    k = max(1, int(share * w))
+    mean = np.convolve(np.nan_to_num(ys, nan=1e9), np.ones(k) / k, "valid")
+    x0 = int(np.argmin(mean))
+    xc, yc = x0 + k // 2, float(np.nanmin(ys[x0:x0 + k]))
+    rng = np.random.default_rng(seed)
+    mask = np.zeros((h, w), np.float32)
+    for _ in range(14):
+        cx, cy = xc + rng.uniform(-0.45, 0.45) * k, yc + rng.uniform(-10, 40) * s
+        ax, ay = rng.uniform(0.12, 0.25) * k, rng.uniform(15, 35) * s
+        cv2.ellipse(mask, (int(cx), int(cy)), (int(ax), int(ay)), 0, 0, 360, 1.0, -1)
+    mask = np.clip(cv2.GaussianBlur(mask, (0, 0), 6 * s) * 1.3, 0, 0.97)[..., None]
+    out = image.astype(np.float32) * (1 - mask) + np.array([238, 238, 236], np.float32) * mask
+    return np.clip(out, 0, 255).astype(np.uint8)
+
+
+def sky_cloud(cv2, image, rows, share=0.25):
+    """A white cumulus floating in the sky over the stretch of `share` of the
+    width with the most sky above its highest skyline point (`rows`: the
+    skyline row per column, None where unknown): seven overlapping ellipses
+    in a fixed pattern (src/skyline/skyline_test.cc paints the same), blurred
+    and blended at up to 95% opacity, their base a third of that sky's height
+    above the skyline (at least 20 px per 1000 columns). None when that sky is
+    under 60 px per 1000 columns high: no room for a cloud."""
+    import numpy as np
+    h, w = image.shape[:2]
+    s = w / 1000.0
+    k = max(1, int(share * w))
+    best, x0 = -1.0, 0
+    for x in range(0, w - k + 1):
+        known = [float(v) for v in rows[x:x + k] if v is not None]
+        if known and min(known) > best:
+            best, x0 = min(known), x
+    if not best >= 60 * s:
+        return None
+    base = best - max(20 * s, best / 3.0)
+    thick = min(36 * s, 0.5 * base)
+    mask = np.zeros((h, w), np.float32)
+    for i in range(7):
+        cx = x0 + k / 2 + (i - 3) / 3.0 * 0.35 * k
+        cy = base - thick / 2 + (0.15 if i % 2 else -0.1) * thick
+        cv2.ellipse(mask, (int(cx), int(cy)), (int(0.16 * k), int(0.4 * thick)), 0, 0, 360, 1.0, -1)
+    mask = np.clip(cv2.GaussianBlur(mask, (0, 0), 4 * s) * 1.3, 0, 0.95)[..., None]
+    out = image.astype(np.float32) * (1 - mask) + np.array([240, 240, 238], np.float32) * mask
+    return np.clip(out, 0, 255).astype(np.uint8)
 
 
 def turned_copy(cv2, source, path):
@@ -938,7 +1004,7 @@ def main():
     floors = {"plain": 12, "camera": 12, "initial": 13, "skyline": 0.9, "thin": 0.9, "skyline-given": 0.95,
               "registered-skyline": 0.9, "registered-skyline-given": 0.95,
               "thin-given": 0.95, "ring": 0, "ring-camera": 0, "ring-initial": 0, "ring-sensors": 0, "ring-noexif": 0, "ring-hfov": 0, "ring-range": 0, "ring-noalt": 0, "ring-noalt-hfov": 0, "hfov": 12,
-              "sensors": 0, "noexif": 0, "reencode": 0, "gray": 0, "upscale2": 0, "upscale4": 0, "downscale2": 0, "jpeg50": 0, "jpeg30": 0, "crop": 0, "crop-narrow": 0, "ring-crop": 0, "ring-crop-narrow": 0, "stations": 0, "turned": 0, "banner": 0, "gray-skyline": 0.0, "stability": 1.0,
+              "sensors": 0, "noexif": 0, "reencode": 0, "gray": 0, "upscale2": 0, "upscale4": 0, "downscale2": 0, "jpeg50": 0, "jpeg30": 0, "crop": 0, "crop-narrow": 0, "ring-crop": 0, "ring-crop-narrow": 0, "stations": 0, "turned": 0, "banner": 0, "cloud": 0, "cloud-small": 0, "sky-cloud": 0, "gray-skyline": 0.0, "stability": 1.0,
               "jpeg30-skyline": 0.0, "photometric": 0, "photometric-skyline": 0.0, "thin-framed": 0.0,
               "thin-framed-given": 0.0}
     for kv in (opt("--floors") or "").split(","):
@@ -1041,6 +1107,29 @@ def main():
                     cv2.FONT_HERSHEY_SIMPLEX, 0.6 * s, (255, 255, 255), max(1, int(2 * s)))
         return write_jpeg_with_exif(cv2, image, source, path)
 
+    def clouded(share):
+        # A cap cloud over the highest stretch of the hand-traced skyline (or,
+        # untraced, of the one `skyline` extracts), JPEG quality 95, EXIF kept.
+        def write(cv2, source, path):
+            truth = json.load(open(source[:source.rfind(".")] + ".truth.json"))
+            rows = truth.get("skyline_row") or []
+            if not any(v is not None for v in rows):
+                rows = extract_skyline(binary, source)["y"]
+            return write_jpeg_with_exif(cv2, cap_cloud(cv2, cv2.imread(source), rows, share), source, path)
+        return write
+
+    def sky_clouded(cv2, source, path):
+        # A cumulus floating in the sky over the photo's widest sky (the
+        # hand-traced skyline's, else the extracted one's); a photo with too
+        # little sky for one is written unchanged.
+        truth = json.load(open(source[:source.rfind(".")] + ".truth.json"))
+        rows = truth.get("skyline_row") or []
+        if not any(v is not None for v in rows):
+            rows = extract_skyline(binary, source)["y"]
+        image = cv2.imread(source)
+        clouded_image = sky_cloud(cv2, image, rows)
+        return write_jpeg_with_exif(cv2, image if clouded_image is None else clouded_image, source, path)
+
     def resized(factor):
         # Bicubic up (a DSLR's or a phone's pixel count); area averaging down
         # (a web page's or a webcam's 360-540 columns at half the size).
@@ -1063,6 +1152,12 @@ def main():
             ("jpeg30", ".q30.jpg", "no prior, re-encoded as JPEG quality 30 (EXIF kept)", compressed(30)),
             ("banner", ".banner.jpg", "no prior, a webcam's timestamp strip over the top (JPEG quality 95, EXIF "
              "kept)", bannered),
+            ("cloud", ".cloud.jpg", "no prior, a cap cloud over the highest fifth of the skyline (JPEG "
+             "quality 95, EXIF kept)", clouded(0.2)),
+            ("sky-cloud", ".skycloud.jpg", "no prior, a cumulus floating in the sky, clear of the skyline (JPEG "
+             "quality 95, EXIF kept)", sky_clouded),
+            ("cloud-small", ".cloud10.jpg", "no prior, a cap cloud over the highest tenth of the skyline (JPEG "
+             "quality 95, EXIF kept)", clouded(0.1)),
             ("turned", ".turned.jpg", "no prior, stored a quarter turn with EXIF Orientation 6 (a camera held "
              "upright)", turned_copy)):
         ring = "ring-" + mode in modes and mode != "noexif"  # ring-noexif: the ring with --no-exif (above)

@@ -531,6 +531,67 @@ double Within2Px(const std::filesystem::path& dir, const std::string& name) {
   return visible ? static_cast<double>(good) / visible : 0.0;
 }
 
+// A white cumulus floating in the photo's widest sky, as `scripts/eval_real.py
+// --modes sky-cloud` paints it: over the quarter of the width whose highest
+// traced skyline point leaves the most sky, seven overlapping ellipses in a
+// fixed pattern, blurred, their base a third of that sky's height above the
+// skyline. Returns the painted columns' range in `from`, `to`.
+cv::Mat WithSkyCloud(const cv::Mat& img, const nlohmann::json& rows, int& from, int& to) {
+  const int w = img.cols, h = img.rows, k = w / 4;
+  const double s = w / 1000.0;
+  double best = -1;
+  for (int x = 0; x + k <= w; ++x) {
+    double top = 1e9;
+    for (int c = x; c < x + k; ++c)
+      if (!rows[c].is_null()) top = std::min(top, rows[c].get<double>());
+    if (top < 1e9 && top > best) best = top, from = x;
+  }
+  to = from + k;
+  const double base = best - std::max(20 * s, best / 3), thick = std::min(36 * s, 0.5 * base);
+  cv::Mat mask(h, w, CV_32F, cv::Scalar(0));
+  for (int i = 0; i < 7; ++i) {
+    const double cx = from + k / 2.0 + (i - 3) / 3.0 * 0.35 * k, cy = base - thick / 2 + (i % 2 ? 0.15 : -0.1) * thick;
+    cv::ellipse(mask, cv::Point(static_cast<int>(cx), static_cast<int>(cy)),
+                cv::Size(static_cast<int>(0.16 * k), static_cast<int>(0.4 * thick)), 0, 0, 360, cv::Scalar(1.0), -1);
+  }
+  cv::GaussianBlur(mask, mask, cv::Size(), 4 * s);
+  cv::Mat out = img.clone();
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      const float a = std::min(0.95f, 1.3f * mask.at<float>(y, x));
+      cv::Vec3b& p = out.at<cv::Vec3b>(y, x);
+      const float cloud[3] = {240.0f, 240.0f, 238.0f};
+      for (int ch = 0; ch < 3; ++ch) p[ch] = cv::saturate_cast<uint8_t>((1.0f - a) * p[ch] + a * cloud[ch]);
+    }
+  return out;
+}
+
+// Terrain does not float: under a white cumulus in a real photo's sky, the
+// skyline stays on the terrain (FindFloatingClouds). Without it the
+// boundary ran along the cloud's top in both photos (0 of 243 and 0 of 268
+// traced columns within 2 px; with it 208 and 261): snow under a blue sky,
+// whose white the histograms learn as ground. Not AK01b_20080811: the sky
+// under its cloud departs from the sky model by 3-7 sigmas (haze low over
+// the horizon), which reads as a hazy ridge, and 10 of 88 are within 2 px.
+TEST(ExtractSkyline, RealPhotosKeepTheirSkylineUnderACloudInTheSky) {
+  HR_REQUIRE_SHARED(shared);
+  const auto dir = shared / "real" / "columbia";
+  for (const char* name : {"AKJNC_20120605_223513", "CG05_20050811_130000"}) {
+    const auto t = nlohmann::json::parse(std::ifstream(dir / (std::string(name) + ".truth.json")));
+    int from = 0, to = 0;
+    const cv::Mat img = WithSkyCloud(cv::imread((dir / (std::string(name) + ".jpg")).string()), t["skyline_row"], from, to);
+    const Skyline s = ExtractSkyline(img, SkylineOptions{});
+    int traced = 0, good = 0;
+    for (int c = from; c < to; ++c) {
+      if (t["skyline_row"][c].is_null()) continue;
+      ++traced;
+      good += std::isfinite(s.y[c]) && std::abs(s.y[c] - t["skyline_row"][c].get<double>()) <= 2.0;
+    }
+    std::printf("[ skyline ] %-22s under the cloud: %d of %d traced columns within 2 px\n", name, good, traced);
+    EXPECT_GE(good, traced * 8 / 10) << name;
+  }
+}
+
 TEST(ExtractSkyline, DevScenesStayWithinTwoPixels) {
   HR_REQUIRE_SHARED(shared);
   const auto dir = shared / "scenes" / "dev";
