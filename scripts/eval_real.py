@@ -1107,27 +1107,22 @@ def main():
                     cv2.FONT_HERSHEY_SIMPLEX, 0.6 * s, (255, 255, 255), max(1, int(2 * s)))
         return write_jpeg_with_exif(cv2, image, source, path)
 
+    def skyline_rows(source):
+        # Where the clouds go: the photo's hand-traced skyline, or, untraced,
+        # the one `skyline` extracts.
+        rows = json.load(open(source[:source.rfind(".")] + ".truth.json")).get("skyline_row") or []
+        return rows if any(v is not None for v in rows) else extract_skyline(binary, source)["y"]
+
     def clouded(share):
-        # A cap cloud over the highest stretch of the hand-traced skyline (or,
-        # untraced, of the one `skyline` extracts), JPEG quality 95, EXIF kept.
-        def write(cv2, source, path):
-            truth = json.load(open(source[:source.rfind(".")] + ".truth.json"))
-            rows = truth.get("skyline_row") or []
-            if not any(v is not None for v in rows):
-                rows = extract_skyline(binary, source)["y"]
-            return write_jpeg_with_exif(cv2, cap_cloud(cv2, cv2.imread(source), rows, share), source, path)
-        return write
+        # A cap cloud over the highest stretch of the skyline, JPEG quality 95, EXIF kept.
+        return lambda cv2, source, path: write_jpeg_with_exif(
+            cv2, cap_cloud(cv2, cv2.imread(source), skyline_rows(source), share), source, path)
 
     def sky_clouded(cv2, source, path):
-        # A cumulus floating in the sky over the photo's widest sky (the
-        # hand-traced skyline's, else the extracted one's); a photo with too
+        # A cumulus floating in the photo's widest sky; a photo with too
         # little sky for one is written unchanged.
-        truth = json.load(open(source[:source.rfind(".")] + ".truth.json"))
-        rows = truth.get("skyline_row") or []
-        if not any(v is not None for v in rows):
-            rows = extract_skyline(binary, source)["y"]
         image = cv2.imread(source)
-        clouded_image = sky_cloud(cv2, image, rows)
+        clouded_image = sky_cloud(cv2, image, skyline_rows(source))
         return write_jpeg_with_exif(cv2, image if clouded_image is None else clouded_image, source, path)
 
     def resized(factor):
