@@ -523,6 +523,16 @@ def cropped_copy(cv2, truth, source, path, where, share):
     return t
 
 
+def blend_cloud(cv2, image, mask, blur_px, opacity, bgr):
+    """`image` under a cloud of colour `bgr` where `mask` (float, 1 inside
+    the cloud's ellipses) lies: the mask blurred by a Gaussian of `blur_px`,
+    raised by 1.3 and capped at `opacity`, as the blend's weight."""
+    import numpy as np
+    weight = np.clip(cv2.GaussianBlur(mask, (0, 0), blur_px) * 1.3, 0, opacity)[..., None]
+    out = image.astype(np.float32) * (1 - weight) + np.array(bgr, np.float32) * weight
+    return np.clip(out, 0, 255).astype(np.uint8)
+
+
 def cap_cloud(cv2, image, rows, share=0.2, seed=0):
     """A cap cloud resting on the photo's highest stretch of skyline (`rows`:
     the skyline row per column, None where unknown): fourteen soft white
@@ -543,9 +553,7 @@ def cap_cloud(cv2, image, rows, share=0.2, seed=0):
         cx, cy = xc + rng.uniform(-0.45, 0.45) * k, yc + rng.uniform(-10, 40) * s
         ax, ay = rng.uniform(0.12, 0.25) * k, rng.uniform(15, 35) * s
         cv2.ellipse(mask, (int(cx), int(cy)), (int(ax), int(ay)), 0, 0, 360, 1.0, -1)
-    mask = np.clip(cv2.GaussianBlur(mask, (0, 0), 6 * s) * 1.3, 0, 0.97)[..., None]
-    out = image.astype(np.float32) * (1 - mask) + np.array([238, 238, 236], np.float32) * mask
-    return np.clip(out, 0, 255).astype(np.uint8)
+    return blend_cloud(cv2, image, mask, 6 * s, 0.97, (238, 238, 236))
 
 
 def sky_cloud(cv2, image, rows, share=0.25):
@@ -574,9 +582,7 @@ def sky_cloud(cv2, image, rows, share=0.25):
         cx = x0 + k / 2 + (i - 3) / 3.0 * 0.35 * k
         cy = base - thick / 2 + (0.15 if i % 2 else -0.1) * thick
         cv2.ellipse(mask, (int(cx), int(cy)), (int(0.16 * k), int(0.4 * thick)), 0, 0, 360, 1.0, -1)
-    mask = np.clip(cv2.GaussianBlur(mask, (0, 0), 4 * s) * 1.3, 0, 0.95)[..., None]
-    out = image.astype(np.float32) * (1 - mask) + np.array([240, 240, 238], np.float32) * mask
-    return np.clip(out, 0, 255).astype(np.uint8)
+    return blend_cloud(cv2, image, mask, 4 * s, 0.95, (240, 240, 238))
 
 
 def turned_copy(cv2, source, path):

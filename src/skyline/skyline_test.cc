@@ -555,12 +555,12 @@ cv::Mat WithSkyCloud(const cv::Mat& img, const nlohmann::json& rows, int& from, 
                 cv::Size(static_cast<int>(0.16 * k), static_cast<int>(0.4 * thick)), 0, 0, 360, cv::Scalar(1.0), -1);
   }
   cv::GaussianBlur(mask, mask, cv::Size(), 4 * s);
+  const float cloud[3] = {240.0f, 240.0f, 238.0f};
   cv::Mat out = img.clone();
   for (int y = 0; y < h; ++y)
     for (int x = 0; x < w; ++x) {
       const float a = std::min(0.95f, 1.3f * mask.at<float>(y, x));
       cv::Vec3b& p = out.at<cv::Vec3b>(y, x);
-      const float cloud[3] = {240.0f, 240.0f, 238.0f};
       for (int ch = 0; ch < 3; ++ch) p[ch] = cv::saturate_cast<uint8_t>((1.0f - a) * p[ch] + a * cloud[ch]);
     }
   return out;
