@@ -197,7 +197,7 @@ Refined RefineLeastSquares(const Scorer& scorer, const std::vector<Column>& cols
     problem.AddResidualBlock(
         new ceres::AutoDiffCostFunction<K1Prior, 1, 5>(new K1Prior{1.0 / options.k1_prior_sigma}), nullptr, p);
   if (!fixed.empty()) problem.SetManifold(p, new ceres::SubsetManifold(5, fixed));
-  if (!options.fix_focal) {
+  if (!options.fix_focal && options.bound_focal) {
     problem.SetParameterLowerBound(p, 3, 0.2 * start.f);
     problem.SetParameterUpperBound(p, 3, 5.0 * start.f);
   }
@@ -274,13 +274,30 @@ PaperCorrection CorrectLinear(const Scorer& scorer, const std::vector<Column>& c
       if (auto px = ProjectAzEl(m, k, j * profile.azimuth_step_deg, profile.elevation_deg[b])) poly.push_back(*px);
     }
     if (poly.size() < 2) return out;
-    // Closest points.
+    // Closest points. Segment i reaches the column's window [u - 3 tau,
+    // u + 3 tau] only if the running maximum of the segments' right ends
+    // has reached the window's left edge by i and the running minimum of
+    // their left ends from i on is within its right edge: both monotone, so
+    // two binary searches bound the segments looked at (the polyline runs
+    // left to right but for roll and steep slopes). The same segments in
+    // the same order as a scan of all of them: the same result, without
+    // the scan (8% of a registration's time with the position check's wide
+    // look, 1% now).
+    const size_t segments = poly.size() - 1;
+    std::vector<double> reach_right(segments), reach_left(segments);
+    for (size_t i = 0; i < segments; ++i)
+      reach_right[i] = std::max(i ? reach_right[i - 1] : -INFINITY, std::max(poly[i].x(), poly[i + 1].x()));
+    for (size_t i = segments; i-- > 0;)
+      reach_left[i] = std::min(i + 1 < segments ? reach_left[i + 1] : INFINITY, std::min(poly[i].x(), poly[i + 1].x()));
     std::vector<double> xs, dxs, ys, dys;
     for (const Column& c : cols) {
       double best = INFINITY;
       Eigen::Vector2d q;
       const Eigen::Vector2d s(c.u, c.v);
-      for (size_t i = 0; i + 1 < poly.size(); ++i) {
+      const size_t from =
+          std::lower_bound(reach_right.begin(), reach_right.end(), c.u - 3 * tau) - reach_right.begin();
+      const size_t to = std::upper_bound(reach_left.begin(), reach_left.end(), c.u + 3 * tau) - reach_left.begin();
+      for (size_t i = from; i < to; ++i) {
         const Eigen::Vector2d a = poly[i], e = poly[i + 1];
         if (std::max(a.x(), e.x()) < c.u - 3 * tau || std::min(a.x(), e.x()) > c.u + 3 * tau) continue;
         const Eigen::Vector2d ab = e - a;
@@ -299,6 +316,7 @@ PaperCorrection CorrectLinear(const Scorer& scorer, const std::vector<Column>& c
       dys.push_back(c.v - q.y());  // up positive
     }
     const int count = static_cast<int>(xs.size());
+    out.matched = count;
     if (count < 8) return out;
     double sx2 = 0, sy2 = 0;
     for (int i = 0; i < count; ++i) {

@@ -118,6 +118,11 @@ struct LeastSquaresOptions {
   int rounds = 3;                     // IRLS rounds at the final noise scale
   std::vector<double> anneal = {};    // noise scale factors before those rounds (e.g. 8, 4, 2)
   bool fix_focal = false;
+  // The focal length kept within 0.2-5 times the start's. Ceres then
+  // line-searches every step of the fit (bounds make it project each step),
+  // which took half of the fits' time; without the bound, Levenberg-
+  // Marquardt's own damping alone (RegistrationOptions::bound_search_focal).
+  bool bound_focal = true;
   bool fit_k1 = false;
   double k1_prior_sigma = 0.15;
   bool want_covariance = false;
@@ -137,6 +142,7 @@ Refined RefineLeastSquares(const Scorer& scorer, const std::vector<Column>& cols
 struct PaperCorrection {
   Pose4 pose;
   double ex_px = NAN, ey_px = NAN;
+  int matched = 0;  // columns with a closest point within 3 tau (the last iteration's)
 };
 PaperCorrection CorrectLinear(const Scorer& scorer, const std::vector<Column>& cols, const Pose4& start, int width,
                               double tau_px);

@@ -7,6 +7,7 @@
 #include <utility>
 
 #include "match/extrema.h"
+#include "match/fit.h"
 #include "match/hypothesis.h"
 #include "match/register.h"
 #include "util/angles.h"
@@ -595,6 +596,41 @@ TEST(Register, EmptySkylineGivesNoMatchNotAnError) {
   const Registration r = Register(s, p, {});
   EXPECT_FALSE(r.registered);
   EXPECT_FALSE(r.message.empty());
+}
+
+// The paper's correction (eq. 11-14) finds each column's closest point on
+// the DEM silhouette among the segments that reach its window: on steep
+// slopes under a strong roll the silhouette turns back on itself in the
+// image, and the segments looked at must still be all that reach it. At the
+// true pose every column lies on the silhouette (distances ~0) and the
+// correction keeps the pose; unrolled, from 0.2 deg off it comes back (its
+// linear model of eq. 11-12 is not made for a strong roll).
+TEST(CorrectLinear, FindsTheSilhouetteUnderAStrongRollOnSteepSlopes) {
+  using namespace match_detail;
+  const HorizonProfile p = SyntheticHorizon(0.05, false, 80);  // slopes up to 70 deg
+  const DemErrorModel model;
+  const HorizonLookup lookup(p, model);
+  for (const double roll : {0.0, 50.0, -65.0, 75.0}) {
+    const CameraPose pose{200.0, 1.0, roll};
+    const auto k = CameraIntrinsics::FromHfov(800, 600, 40.0);
+    const Skyline sky = SkylineOf(p, pose, k);
+    const ImageFrame frame(sky, std::nullopt);
+    const Scorer scorer(lookup, model, 1.0, k.height, 0.25);
+    const std::vector<Column> cols = VisibleColumns(sky, frame);
+    ASSERT_GT(cols.size(), 150u) << roll;
+    const Pose4 truth = Pose4::From(pose, k.focal_px);
+    const PaperCorrection at = CorrectLinear(scorer, cols, truth, k.width, 2.0);
+    ASSERT_TRUE(std::isfinite(at.ex_px) && std::isfinite(at.ey_px)) << roll;
+    EXPECT_EQ(at.matched, static_cast<int>(cols.size())) << roll;
+    EXPECT_LT(at.ex_px, 0.1) << roll;
+    EXPECT_LT(at.ey_px, 0.1) << roll;
+    EXPECT_NEAR(RadToDeg(at.pose.yaw - truth.yaw), 0.0, 0.005) << roll;
+    if (roll != 0.0) continue;
+    Pose4 off = truth;
+    off.yaw += DegToRad(0.2);
+    const PaperCorrection back = CorrectLinear(scorer, cols, off, k.width, 2.0);
+    EXPECT_LT(std::abs(RadToDeg(back.pose.yaw - truth.yaw)), 0.1) << roll;
+  }
 }
 
 TEST(HorizonDistancePx, PositiveBelowTheSilhouette) {

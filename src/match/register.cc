@@ -760,6 +760,7 @@ Registration Register(const Skyline& skyline, const HorizonProfile& horizon, con
       lso.rounds = 2;
       lso.anneal = {6.0, 3.0};  // candidates a few pixels off converge; neighbours of one solution merge
       lso.fix_focal = frame.known();
+      lso.bound_focal = options.bound_search_focal;
       auto refined_from = [&](const Pose4& start) {
         std::vector<Column> cols = quick;  // weighted for this start
         scorer.Reweight(start, cols);

@@ -125,6 +125,16 @@ struct RegistrationOptions {
   // only compared with each other (the position check, locate's places),
   // which then cost what they did, not three times as much.
   bool narrow_window_restarts = true;
+  // The search's refinements keep the focal length within 0.2-5 times the
+  // hypothesis's (LeastSquaresOptions::bound_focal). Off where many places'
+  // searches are only compared with each other (the position check): the
+  // bound never binds there, and without it Ceres skips the projected line
+  // search of every step, a fifth of the check's time. On for a
+  // registration's own search: the minima move by rounding (hundredths of a
+  // degree), which flips decisions at their gates both ways (measured on
+  // 2026-12-06: the grey AK01b_20080811 ambiguous at 1.40, the rendered
+  // hard scenes 5 -> 6 of 6), so it stays as measured.
+  bool bound_search_focal = true;
   // Poses an image cue has told apart from the best one (the inner ridges
   // of pipeline/ridge_check.h): a candidate within kRuledOutDeg of one in
   // azimuth and pitch is no alternative (neither the ambiguity ratio's nor
