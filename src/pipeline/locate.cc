@@ -481,6 +481,7 @@ LocateResult LocateInWindow(const TerrainWindow& given_window, const cv::Mat& im
     p.position_sigma_m = sigma_m;
     RegistrationOptions ro = PhotoRegistrationOptions(/*altitude_given=*/false, p, image.cols, image.rows);
     ro.narrow_window_restarts = false;  // the places compared alike, one start each (a third of the time)
+    ro.bound_search_focal = false;      // and without the projected line search (RegistrationOptions)
     // The lens's distortion is the camera's, not the place's: the places are
     // compared with the pinhole model (and known intrinsics as given), the
     // answer's registration estimates it. A quarter less time per place, the
