@@ -50,6 +50,8 @@ class HorizonAccumulator {
         const double len2 = (q.e - p.e) * (q.e - p.e) + (q.n - p.n) * (q.n - p.n);
         if (slack > 0.0 && len2 <= slack * slack) return;
       }
+    } else if (EdgeBelowItsSectors(p, q)) {
+      return;
     }
     // Stationary point of w(t) / r(t) on the edge (closed form, see header).
     const double a = p.w, b = q.w - p.w;
@@ -139,6 +141,49 @@ class HorizonAccumulator {
     if (a.tan_el == b.tan_el && b.hint && !a.hint) return true;
     return a.tan_el > b.tan_el || (a.tan_el == b.tan_el && a.tan_el > -std::numeric_limits<double>::infinity() &&
                                    (a.d < b.d || (a.d == b.d && (a.e < b.e || (a.e == b.e && a.n < b.n)))));
+  }
+  // Whether no point of the edge p -> q can raise any sector it crosses (the
+  // sectors WalkCrossings visits, ends included): on the edge w <= max(p.w,
+  // q.w) and the distance lies between the segment's nearest point to the
+  // observer and its farther end. Near terrain's edges span many sectors,
+  // and most lie well under the far ridges that set them. The bound keeps a
+  // margin of a micrometre and 1e-9, so what it skips could not have changed
+  // a bin, ties included.
+  bool EdgeBelowItsSectors(const SweepPoint& p, const SweepPoint& q) const {
+    const int n = setup_->num_sectors;
+    const double cross = p.e * q.n - p.n * q.e;
+    if (cross == 0.0) return false;
+    const int dir = cross < 0.0 ? 1 : -1;  // as WalkCrossings
+    int count = dir > 0 ? q.sector - p.sector : p.sector - q.sector;
+    if (count < 0) count += n;
+    if (count >= n / 2 + 1) return false;  // not walked: WalkCrossings decides
+    const double w_max = std::max(p.w, q.w);
+    const double w_bound = w_max * (1.0 + std::copysign(1e-9, w_max)) + 1e-6;
+    if (w_bound < 0.0) {
+      // Lowest where farthest: the farther end.
+      const double d_bound = std::max(p.d, q.d) * (1.0 + 1e-9) + 1e-6;
+      const double t = LowestOnWalk(p.sector, dir, count);
+      return w_bound < t * d_bound;
+    }
+    const double ve = q.e - p.e, vn = q.n - p.n, len2 = ve * ve + vn * vn;
+    if (!(len2 > 0.0)) return false;
+    const double s = std::clamp(-(p.e * ve + p.n * vn) / len2, 0.0, 1.0);
+    const double ne = p.e + s * ve, nn = p.n + s * vn;
+    const double r_bound = std::sqrt(ne * ne + nn * nn) * (1.0 - 1e-9) - 1e-6;
+    if (!(r_bound > 0.0)) return false;
+    const double t = LowestOnWalk(p.sector, dir, count);
+    return t > 0.0 && w_bound < t * r_bound;
+  }
+  // The lowest current maximum over the count + 1 sectors from `first`,
+  // stepping by dir (+1 or -1), wrapping.
+  double LowestOnWalk(int first, int dir, int count) const {
+    const int n = setup_->num_sectors;
+    double m = best_[first].tan_el;
+    for (int i = 0, s = first; i < count; ++i) {
+      s = dir > 0 ? (s + 1 == n ? 0 : s + 1) : (s == 0 ? n - 1 : s - 1);
+      m = std::min(m, best_[s].tan_el);
+    }
+    return m;
   }
   bool IsAdjacent(int s1, int s2) const {
     const int diff = std::abs(s1 - s2);

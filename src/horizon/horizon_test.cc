@@ -480,6 +480,52 @@ void CompareWithReference(const Viewpoint& v, const std::filesystem::path& share
   EXPECT_LE(p95, 0.05) << v.name;
 }
 
+// An edge of near terrain spans many bins; one that lies under every bin
+// it crosses is skipped (HorizonAccumulator::EdgeBelowItsSectors), bounded
+// by its higher end over its nearest point to the observer. An observer
+// 250 m from a crest running north-south, with rolling hills about: near
+// edges, each across tens of bins, set nearly every bin. The horizon must
+// not depend on when the edges are read: on one thread or three, and with
+// every bin raised beforehand to just under its horizon (hints), when
+// almost every edge is skipped and one skipped wrongly would leave its
+// bins lower. The near bins agree with a fine ray march.
+TEST(ComputeHorizon, NearEdgesUnderTheirBinsAreSkippedWithoutChangingTheHorizon) {
+  DemGrid g = SynthesizeDem(45.2, 6.9, 0.0015, 201, 201, [&](double lat, double lon) {
+    const double east_m = (lon - 7.0032) * 78'700.0;  // the crest, about 250 m east of the observer
+    return 300.0 + 25.0 * std::sin(lat * 1700.0) * std::cos(lon * 1300.0) +
+           90.0 * std::exp(-east_m * east_m / (2.0 * 60.0 * 60.0));
+  });
+  TerrainWindow w = WindowOf(std::move(g));
+  const GeodeticPoint obs = ResolveObserver(w, 45.0004, 7.0002, 2.0, std::nullopt);
+  HorizonOptions one, three;
+  one.num_threads = 1;
+  one.max_distance_m = three.max_distance_m = 20'000.0;
+  three.num_threads = 3;
+  const HorizonProfile a = ComputeHorizon(w, obs, one), b = ComputeHorizon(w, obs, three);
+  std::vector<double> under(a.size());
+  for (int i = 0; i < a.size(); ++i) under[i] = std::tan(DegToRad(a.elevation_deg[i])) - 0.002;
+  HorizonOptions hinted = one;
+  hinted.hint_tan_el = &under;
+  const HorizonProfile c = ComputeHorizon(w, obs, hinted);
+  int near = 0;
+  for (int i = 0; i < a.size(); ++i) {
+    ASSERT_TRUE(std::isfinite(a.elevation_deg[i])) << "bin " << i;
+    for (const HorizonProfile* x : {&b, &c}) {
+      EXPECT_EQ(a.elevation_deg[i], x->elevation_deg[i]) << "bin " << i;
+      EXPECT_EQ(a.distance_m[i], x->distance_m[i]) << "bin " << i;
+    }
+    near += a.distance_m[i] < 600.0;
+  }
+  EXPECT_GT(near, 1000);
+  const auto ref = ReferenceHorizon(w, obs, one.max_distance_m, one.refraction).Compute(one.azimuth_step_deg, 5);
+  std::vector<double> diff;
+  for (int i = 0; i < a.size(); ++i)
+    if (a.distance_m[i] < 600.0) diff.push_back(std::abs(a.elevation_deg[i] - ref[i]));
+  std::sort(diff.begin(), diff.end());
+  EXPECT_LE(diff[diff.size() / 2], 0.01);
+  EXPECT_LE(diff[diff.size() * 95 / 100], 0.05);
+}
+
 TEST(ComputeHorizon, AgreesWithAFineRayMarchOnRainier) {
   HR_REQUIRE_SHARED(shared);
   CompareWithReference({"Rainier (Paradise)", {"mt_rainier_90m.tif"}, 46.7859, -121.7353}, shared);
