@@ -39,8 +39,11 @@ std::optional<std::pair<double, double>> DemGrid::PixelOf(double query_lat_deg, 
       const double det = dla_dx * dlo_dy - dla_dy * dlo_dx;
       if (det == 0.0) break;
       const double ela = query_lat_deg - la, elo = AngDiffDeg(query_lon_deg, lo);
-      col += (dlo_dy * ela - dla_dy * elo) / det;
-      row += (-dlo_dx * ela + dla_dx * elo) / det;
+      const double dc = (dlo_dy * ela - dla_dy * elo) / det, dr = (-dlo_dx * ela + dla_dx * elo) / det;
+      // Converged to the last bit: the iterations left would repeat this one.
+      if (col + dc == col && row + dr == row) break;
+      col += dc;
+      row += dr;
     }
   }
   const double eps = 1e-9;
