@@ -150,13 +150,9 @@ class HorizonAccumulator {
   // margin of a micrometre and 1e-9, so what it skips could not have changed
   // a bin, ties included.
   bool EdgeBelowItsSectors(const SweepPoint& p, const SweepPoint& q) const {
-    const int n = setup_->num_sectors;
-    const double cross = p.e * q.n - p.n * q.e;
-    if (cross == 0.0) return false;
-    const int dir = cross < 0.0 ? 1 : -1;  // as WalkCrossings
-    int count = dir > 0 ? q.sector - p.sector : p.sector - q.sector;
-    if (count < 0) count += n;
-    if (count >= n / 2 + 1) return false;  // not walked: WalkCrossings decides
+    const std::optional<internal::CrossingWalk> walk = internal::WalkOf(*setup_, p, q);
+    if (!walk) return false;  // not walked: nothing to skip
+    const int dir = walk->dir, count = walk->count;
     const double w_max = std::max(p.w, q.w);
     const double w_bound = w_max * (1.0 + std::copysign(1e-9, w_max)) + 1e-6;
     if (w_bound < 0.0) {

@@ -340,18 +340,31 @@ void SweepRows(const DemGrid& grid, const LocalFrame& frame, const SweepSetup& s
   }
 }
 
+// The rays an edge p -> q crosses: the way its azimuth turns from p to q
+// (dir +1: increasing) and how many (count); nullopt when the edge passes
+// (nearly) through the observer and is not walked.
+struct CrossingWalk {
+  int dir = 1, count = 0;
+};
+inline std::optional<CrossingWalk> WalkOf(const SweepSetup& setup, const SweepPoint& p, const SweepPoint& q) {
+  const int n = setup.num_sectors;
+  const double cross = p.e * q.n - p.n * q.e;
+  if (cross == 0.0) return std::nullopt;
+  const int dir = cross < 0.0 ? 1 : -1;
+  int count = dir > 0 ? q.sector - p.sector : p.sector - q.sector;
+  if (count < 0) count += n;
+  if (count >= n / 2 + 1) return std::nullopt;  // inconsistent (edge at the observer)
+  return CrossingWalk{dir, count};
+}
+
 // Walks the rays an edge p -> q crosses, in order, calling
 // visit(ray_index, t, sector_before, sector_after). Returns false when the
 // edge passes (nearly) through the observer and was not walked.
 template <typename Visit>
 bool WalkCrossings(const SweepSetup& setup, const SweepPoint& p, const SweepPoint& q, Visit&& visit) {
-  const int n = setup.num_sectors;
-  const double cross = p.e * q.n - p.n * q.e;
-  if (cross == 0.0) return false;
-  const int dir = cross < 0.0 ? 1 : -1;  // +1: azimuth increases from p to q
-  int count = dir > 0 ? q.sector - p.sector : p.sector - q.sector;
-  if (count < 0) count += n;
-  if (count >= n / 2 + 1) return false;  // inconsistent (edge at the observer)
+  const std::optional<CrossingWalk> walk = WalkOf(setup, p, q);
+  if (!walk) return false;
+  const int n = setup.num_sectors, dir = walk->dir, count = walk->count;
   const double ve = q.e - p.e, vn = q.n - p.n;
   int s = p.sector;
   for (int i = 0; i < count; ++i) {
