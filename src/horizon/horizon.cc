@@ -152,14 +152,15 @@ class HorizonAccumulator {
   bool EdgeBelowItsSectors(const SweepPoint& p, const SweepPoint& q) const {
     const std::optional<internal::CrossingWalk> walk = internal::WalkOf(*setup_, p, q);
     if (!walk) return false;  // not walked: nothing to skip
-    const int dir = walk->dir, count = walk->count;
+    // The count + 1 sectors walked, as a run from its lower end.
+    const int n = setup_->num_sectors, count = walk->count;
+    const int first = walk->dir > 0 ? p.sector : (p.sector - count + n) % n;
     const double w_max = std::max(p.w, q.w);
     const double w_bound = w_max * (1.0 + std::copysign(1e-9, w_max)) + 1e-6;
     if (w_bound < 0.0) {
       // Lowest where farthest: the farther end.
       const double d_bound = std::max(p.d, q.d) * (1.0 + 1e-9) + 1e-6;
-      const double t = LowestOnWalk(p.sector, dir, count);
-      return w_bound < t * d_bound;
+      return w_bound < LowestBest(first, count + 1) * d_bound;
     }
     const double ve = q.e - p.e, vn = q.n - p.n, len2 = ve * ve + vn * vn;
     if (!(len2 > 0.0)) return false;
@@ -167,19 +168,8 @@ class HorizonAccumulator {
     const double ne = p.e + s * ve, nn = p.n + s * vn;
     const double r_bound = std::sqrt(ne * ne + nn * nn) * (1.0 - 1e-9) - 1e-6;
     if (!(r_bound > 0.0)) return false;
-    const double t = LowestOnWalk(p.sector, dir, count);
+    const double t = LowestBest(first, count + 1);
     return t > 0.0 && w_bound < t * r_bound;
-  }
-  // The lowest current maximum over the count + 1 sectors from `first`,
-  // stepping by dir (+1 or -1), wrapping.
-  double LowestOnWalk(int first, int dir, int count) const {
-    const int n = setup_->num_sectors;
-    double m = best_[first].tan_el;
-    for (int i = 0, s = first; i < count; ++i) {
-      s = dir > 0 ? (s + 1 == n ? 0 : s + 1) : (s == 0 ? n - 1 : s - 1);
-      m = std::min(m, best_[s].tan_el);
-    }
-    return m;
   }
   bool IsAdjacent(int s1, int s2) const {
     const int diff = std::abs(s1 - s2);
