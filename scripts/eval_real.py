@@ -71,6 +71,12 @@ Modes (each a per-photo table and a summary):
             white cumulus floating in its widest sky, a third of the sky's
             height above the skyline (unchanged where the sky is under 60 px
             per 1000 columns high); ring-sky-cloud: the ring on those copies
+  occluder  (not in the default set; seconds) plain on each photo with a
+            dark conifer and a power pole rising from the bottom edge into
+            its sky (at 22% and 68% of the width, their tops half and two
+            thirds of the sky's height above the skyline): near objects at a
+            viewpoint hide part of the skyline (--floors occluder=N);
+            ring-occluder: the ring on those copies
   turned    (not in the default set; seconds) plain on each photo stored a
             quarter turn anticlockwise with EXIF Orientation 6 and its
             recorded size the stored pixels' (a camera held upright): decoded
@@ -585,6 +591,44 @@ def sky_cloud(cv2, image, rows, share=0.25):
     return blend_cloud(cv2, image, mask, 4 * s, 0.95, (240, 240, 238))
 
 
+def occluders(cv2, image, rows):
+    """Two near objects standing into the sky, as at a viewpoint: a conifer
+    (dark green, nine jagged tiers, 90 px wide per 1000 columns at the
+    bottom edge) from the bottom edge at 22% of the width, its top half the sky's
+    height above the skyline there (`rows`: the skyline row per column, None
+    where unknown), and a power pole (dark grey, 6 px per 1000 columns, a
+    crossarm 44 px wide) at 68%, its top two thirds of that sky above it;
+    both at least 4 px below the photo's top. The skyline behind them is
+    hidden; no other column changes."""
+    import numpy as np
+    h, w = image.shape[:2]
+    s = w / 1000.0
+    out = image.copy()
+
+    def sky_above(xc):
+        known = [(abs(x - xc), float(v)) for x, v in enumerate(rows) if v is not None]
+        return min(known)[1] if known else h / 2.0
+
+    xt = int(0.22 * w)
+    top = max(4.0, sky_above(xt) * 0.5)
+    half = 45 * s
+    tiers = 9
+    pts_l, pts_r = [], []
+    for i in range(1, tiers + 1):  # each tier: out to its tip, then back in
+        y = top + (h - top) * i / tiers
+        wdt = half * i / tiers
+        pts_l += [(xt - wdt, y), (xt - 0.55 * wdt, y)]
+        pts_r += [(xt + wdt, y), (xt + 0.55 * wdt, y)]
+    poly = [(xt, top)] + pts_r + pts_l[::-1]
+    cv2.fillPoly(out, [np.array(poly, np.int32)], (28, 52, 30), cv2.LINE_AA)
+    xp = int(0.68 * w)
+    ptop = max(4.0, sky_above(xp) / 3.0)
+    cv2.rectangle(out, (int(xp - 3 * s), int(ptop)), (int(xp + 3 * s), h), (48, 50, 52), -1)
+    cv2.rectangle(out, (int(xp - 22 * s), int(ptop + 10 * s)), (int(xp + 22 * s), int(ptop + 14 * s)),
+                  (48, 50, 52), -1)
+    return out
+
+
 def turned_copy(cv2, source, path):
     """The photo stored a quarter turn anticlockwise with EXIF Orientation 6
     (turn clockwise to show) and its recorded size the stored pixels', as a
@@ -1010,7 +1054,7 @@ def main():
     floors = {"plain": 12, "camera": 12, "initial": 13, "skyline": 0.9, "thin": 0.9, "skyline-given": 0.95,
               "registered-skyline": 0.9, "registered-skyline-given": 0.95,
               "thin-given": 0.95, "ring": 0, "ring-camera": 0, "ring-initial": 0, "ring-sensors": 0, "ring-noexif": 0, "ring-hfov": 0, "ring-range": 0, "ring-noalt": 0, "ring-noalt-hfov": 0, "hfov": 12,
-              "sensors": 0, "noexif": 0, "reencode": 0, "gray": 0, "upscale2": 0, "upscale4": 0, "downscale2": 0, "jpeg50": 0, "jpeg30": 0, "crop": 0, "crop-narrow": 0, "ring-crop": 0, "ring-crop-narrow": 0, "stations": 0, "turned": 0, "banner": 0, "cloud": 0, "cloud-small": 0, "sky-cloud": 0, "gray-skyline": 0.0, "stability": 1.0,
+              "sensors": 0, "noexif": 0, "reencode": 0, "gray": 0, "upscale2": 0, "upscale4": 0, "downscale2": 0, "jpeg50": 0, "jpeg30": 0, "crop": 0, "crop-narrow": 0, "ring-crop": 0, "ring-crop-narrow": 0, "stations": 0, "turned": 0, "banner": 0, "cloud": 0, "cloud-small": 0, "sky-cloud": 0, "occluder": 0, "gray-skyline": 0.0, "stability": 1.0,
               "jpeg30-skyline": 0.0, "photometric": 0, "photometric-skyline": 0.0, "thin-framed": 0.0,
               "thin-framed-given": 0.0}
     for kv in (opt("--floors") or "").split(","):
@@ -1131,6 +1175,10 @@ def main():
         clouded_image = sky_cloud(cv2, image, skyline_rows(source))
         return write_jpeg_with_exif(cv2, image if clouded_image is None else clouded_image, source, path)
 
+    def occluded(cv2, source, path):
+        # A conifer and a power pole standing into the sky.
+        return write_jpeg_with_exif(cv2, occluders(cv2, cv2.imread(source), skyline_rows(source)), source, path)
+
     def resized(factor):
         # Bicubic up (a DSLR's or a phone's pixel count); area averaging down
         # (a web page's or a webcam's 360-540 columns at half the size).
@@ -1159,6 +1207,8 @@ def main():
              "quality 95, EXIF kept)", sky_clouded),
             ("cloud-small", ".cloud10.jpg", "no prior, a cap cloud over the highest tenth of the skyline (JPEG "
              "quality 95, EXIF kept)", clouded(0.1)),
+            ("occluder", ".occluder.jpg", "no prior, a conifer and a power pole standing into the sky (JPEG "
+             "quality 95, EXIF kept)", occluded),
             ("turned", ".turned.jpg", "no prior, stored a quarter turn with EXIF Orientation 6 (a camera held "
              "upright)", turned_copy)):
         ring = "ring-" + mode in modes and mode != "noexif"  # ring-noexif: the ring with --no-exif (above)
