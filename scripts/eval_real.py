@@ -77,6 +77,11 @@ Modes (each a per-photo table and a summary):
             thirds of the sky's height above the skyline): near objects at a
             viewpoint hide part of the skyline (--floors occluder=N);
             ring-occluder: the ring on those copies
+  cables    (not in the default set; seconds) plain on each photo with two
+            dark power cables sagging across its whole width, 2 px thick per
+            1000 columns, their ends at 35% and 60% of the median sky height
+            above the skyline (--floors cables=N); ring-cables: the ring on
+            those copies
   turned    (not in the default set; seconds) plain on each photo stored a
             quarter turn anticlockwise with EXIF Orientation 6 and its
             recorded size the stored pixels' (a camera held upright): decoded
@@ -629,6 +634,26 @@ def occluders(cv2, image, rows):
     return out
 
 
+def cables(cv2, image, rows):
+    """Two power cables sagging across the whole width of the sky, dark
+    grey, 2 px thick per 1000 columns (anti-aliased): their ends at 35% and
+    60% of the median sky height above the skyline (`rows`: the skyline row
+    per column, None where unknown), sagging by 15% of it at the middle.
+    Where the sky is thin they cross the terrain, as cables do."""
+    import numpy as np
+    h, w = image.shape[:2]
+    s = w / 1000.0
+    known = [float(v) for v in rows if v is not None]
+    sky = float(np.median(known)) if known else h / 2.0
+    out = image.copy()
+    xs = np.arange(w, dtype=np.float64)
+    for share in (0.35, 0.6):
+        ys = sky * share + 0.15 * sky * (1.0 - ((xs - w / 2.0) / (w / 2.0)) ** 2)
+        cv2.polylines(out, [np.stack([xs, ys], 1).astype(np.int32)], False, (40, 40, 40),
+                      max(1, int(round(2 * s))), cv2.LINE_AA)
+    return out
+
+
 def turned_copy(cv2, source, path):
     """The photo stored a quarter turn anticlockwise with EXIF Orientation 6
     (turn clockwise to show) and its recorded size the stored pixels', as a
@@ -1054,7 +1079,7 @@ def main():
     floors = {"plain": 12, "camera": 12, "initial": 13, "skyline": 0.9, "thin": 0.9, "skyline-given": 0.95,
               "registered-skyline": 0.9, "registered-skyline-given": 0.95,
               "thin-given": 0.95, "ring": 0, "ring-camera": 0, "ring-initial": 0, "ring-sensors": 0, "ring-noexif": 0, "ring-hfov": 0, "ring-range": 0, "ring-noalt": 0, "ring-noalt-hfov": 0, "hfov": 12,
-              "sensors": 0, "noexif": 0, "reencode": 0, "gray": 0, "upscale2": 0, "upscale4": 0, "downscale2": 0, "jpeg50": 0, "jpeg30": 0, "crop": 0, "crop-narrow": 0, "ring-crop": 0, "ring-crop-narrow": 0, "stations": 0, "turned": 0, "banner": 0, "cloud": 0, "cloud-small": 0, "sky-cloud": 0, "occluder": 0, "gray-skyline": 0.0, "stability": 1.0,
+              "sensors": 0, "noexif": 0, "reencode": 0, "gray": 0, "upscale2": 0, "upscale4": 0, "downscale2": 0, "jpeg50": 0, "jpeg30": 0, "crop": 0, "crop-narrow": 0, "ring-crop": 0, "ring-crop-narrow": 0, "stations": 0, "turned": 0, "banner": 0, "cloud": 0, "cloud-small": 0, "sky-cloud": 0, "occluder": 0, "cables": 0, "gray-skyline": 0.0, "stability": 1.0,
               "jpeg30-skyline": 0.0, "photometric": 0, "photometric-skyline": 0.0, "thin-framed": 0.0,
               "thin-framed-given": 0.0}
     for kv in (opt("--floors") or "").split(","):
@@ -1179,6 +1204,10 @@ def main():
         # A conifer and a power pole standing into the sky.
         return write_jpeg_with_exif(cv2, occluders(cv2, cv2.imread(source), skyline_rows(source)), source, path)
 
+    def cabled(cv2, source, path):
+        # Two power cables across the sky.
+        return write_jpeg_with_exif(cv2, cables(cv2, cv2.imread(source), skyline_rows(source)), source, path)
+
     def resized(factor):
         # Bicubic up (a DSLR's or a phone's pixel count); area averaging down
         # (a web page's or a webcam's 360-540 columns at half the size).
@@ -1209,6 +1238,8 @@ def main():
              "quality 95, EXIF kept)", clouded(0.1)),
             ("occluder", ".occluder.jpg", "no prior, a conifer and a power pole standing into the sky (JPEG "
              "quality 95, EXIF kept)", occluded),
+            ("cables", ".cables.jpg", "no prior, two power cables sagging across the sky (JPEG quality 95, "
+             "EXIF kept)", cabled),
             ("turned", ".turned.jpg", "no prior, stored a quarter turn with EXIF Orientation 6 (a camera held "
              "upright)", turned_copy)):
         ring = "ring-" + mode in modes and mode != "noexif"  # ring-noexif: the ring with --no-exif (above)

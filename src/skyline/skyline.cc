@@ -721,6 +721,147 @@ HR_VECTOR_CLONES void VetoSubtleDepartures(const cv::Mat& deviation, const LabPl
   }
 }
 
+// Thin lines across the sky (power lines, a wire, a contrail): per work
+// column, a run of one or two rows that departs from the colour the rows
+// either side of it share, those rows each smooth, is replaced by the line
+// between them. The sky/terrain boundary is no such run: the colours above
+// and below it differ.
+// Thin lines across the sky (power lines, a cable, a contrail): per work
+// column, a run of 1-4 rows that departs by more than kLineDeltaE (and 2.5
+// times their own difference) from the two rows either side of it, those
+// rows within kLineSameDeltaE of each other and each as light as its outer
+// neighbour to within that; runs that continue one another (start rows
+// within 1 from column to column, or 2 over a column where none was found)
+// over at least a twentieth of the width
+// are replaced by the line between the rows either side. The sky/terrain
+// boundary is no such run (the colours above and below it differ), and
+// texture's runs are short. Measured on the real photos with two cables
+// across their sky: see docs/MEASUREMENTS.md, "Cables across the sky".
+constexpr float kLineSameDeltaE = 3.0f;
+constexpr float kLineDeltaE = 4.0f;
+constexpr int kLineMaxRows = 5;
+constexpr int kLineStraightColumns = 16;  // columns each side over which a cable's runs lie on a line ...
+constexpr double kLineStraightRows = 2.0;  // ... to within this many rows
+constexpr int kLineTrackStep = 4;  // a track continues over up to 3 columns where no run was found
+constexpr int kLineTrackShare = 12;  // a track spans at least 1/12 of the work width (and 8 columns)
+HR_VECTOR_CLONES void EraseThinLines(LabPlanes& lab, std::vector<uint8_t>& run_len, std::vector<uint16_t>& left,
+                                     std::vector<uint16_t>& right) {
+  const int w = lab.Rows(), h = lab.Cols();
+  const int min_track = std::max(8, w / kLineTrackShare);
+  const size_t n = static_cast<size_t>(w) * h;
+  run_len.assign(n, 0);
+  constexpr float same2 = kLineSameDeltaE * kLineSameDeltaE;
+  bool any = false;
+  for (int c = 0; c < w; ++c) {
+    const float* l = lab.l.ptr<float>(c);
+    const float* a = lab.a.ptr<float>(c);
+    const float* b = lab.b.ptr<float>(c);
+    auto de2 = [&](int i, int j) {
+      const float dl = l[i] - l[j], da = a[i] - a[j], db = b[i] - b[j];
+      return dl * dl + da * da + db * db;
+    };
+    uint8_t* runs = run_len.data() + static_cast<size_t>(c) * h;
+    for (int r = 2; r + 3 < h; ++r) {
+      const int up = r - 1;
+      if (std::abs(l[up - 1] - l[up]) > kLineSameDeltaE) continue;
+      for (int len = 1; len <= kLineMaxRows; ++len) {
+        const int dn = r + len;  // the rows either side: up and dn
+        if (dn + 1 >= h) break;
+        if (std::abs(l[dn] - l[dn + 1]) > kLineSameDeltaE) continue;
+        const float across2 = de2(up, dn);
+        if (across2 > same2) continue;
+        float peak2 = 0.0f;
+        for (int k = r; k < dn; ++k) peak2 = std::max(peak2, std::min(de2(k, up), de2(k, dn)));
+        if (peak2 < std::max(kLineDeltaE * kLineDeltaE, 6.25f * across2)) continue;
+        runs[r] = static_cast<uint8_t>(len);
+        any = true;
+        r += len;
+        break;
+      }
+    }
+  }
+  if (!any) return;
+  // The longest track through each run, from the left and from the right.
+  left.assign(n, 0);
+  right.assign(n, 0);
+  // A track continues from the run in the next column (start row within 1)
+  // or, over a column where the run was not found, the one after (within 2).
+  auto longest = [&](const std::vector<uint16_t>& v, int c, int r, int step) {
+    uint16_t best = 0;
+    for (int k = 1; k <= kLineTrackStep; ++k) {
+      const int cc = c + k * step;
+      if (cc < 0 || cc >= w) break;
+      for (int d = std::max(0, r - k); d <= std::min(h - 1, r + k); ++d)
+        best = std::max(best, v[static_cast<size_t>(cc) * h + d]);
+    }
+    return best;
+  };
+  for (int c = 0; c < w; ++c)
+    for (int r = 0; r < h; ++r)
+      if (run_len[static_cast<size_t>(c) * h + r])
+        left[static_cast<size_t>(c) * h + r] = static_cast<uint16_t>(longest(left, c, r, -1) + 1);
+  for (int c = w - 1; c >= 0; --c)
+    for (int r = 0; r < h; ++r)
+      if (run_len[static_cast<size_t>(c) * h + r])
+        right[static_cast<size_t>(c) * h + r] = static_cast<uint16_t>(longest(right, c, r, 1) + 1);
+  // A cable is straight over a few dozen columns (a catenary's sag bends it
+  // by a tenth of a row there); a crest that thin between two equal colours
+  // (dark rock between an overcast sky and snow) bends or is jagged.
+  auto straight = [&](int c, int r) {
+    double m = 0, sx = 0, sy = 0, sxx = 0, sxy = 0;
+    std::array<std::pair<int, int>, 2 * kLineStraightColumns + 1> pts;
+    int count = 0;
+    pts[count++] = {c, r};
+    for (const int step : {-1, 1}) {
+      int cr = r, gap = 0;
+      for (int k = 1; k <= kLineStraightColumns; ++k) {
+        const int cc = c + k * step;
+        if (cc < 0 || cc >= w) break;
+        int found = -1;
+        for (int d = 0; d <= 1 + gap && found < 0; ++d)
+          for (const int rr : {cr - d, cr + d})
+            if (rr >= 0 && rr < h && run_len[static_cast<size_t>(cc) * h + rr]) {
+              found = rr;
+              break;
+            }
+        if (found < 0) {
+          if (++gap >= kLineTrackStep) break;
+          continue;
+        }
+        gap = 0;
+        cr = found;
+        pts[count++] = {cc, cr};
+      }
+    }
+    if (count < kLineStraightColumns) return false;
+    for (int k = 0; k < count; ++k) {
+      const double x = pts[k].first - c, y = pts[k].second;
+      m += 1, sx += x, sy += y, sxx += x * x, sxy += x * y;
+    }
+    const double den = m * sxx - sx * sx;
+    if (!(den > 0)) return false;
+    const double slope = (m * sxy - sx * sy) / den, icpt = (sy - slope * sx) / m;
+    for (int k = 0; k < count; ++k)
+      if (std::abs(pts[k].second - (icpt + slope * (pts[k].first - c))) > kLineStraightRows) return false;
+    return true;
+  };
+  for (int c = 0; c < w; ++c) {
+    float* l = lab.l.ptr<float>(c);
+    float* a = lab.a.ptr<float>(c);
+    float* b = lab.b.ptr<float>(c);
+    for (int r = 0; r < h; ++r) {
+      const size_t i = static_cast<size_t>(c) * h + r;
+      const int len = run_len[i];
+      if (!len || left[i] + right[i] - 1 < min_track || !straight(c, r)) continue;
+      const int up = r - 1, dn = r + len;
+      for (int k = r; k < dn; ++k) {
+        const float t = static_cast<float>(k - up) / static_cast<float>(dn - up);
+        l[k] = l[up] + t * (l[dn] - l[up]), a[k] = a[up] + t * (a[dn] - a[up]), b[k] = b[up] + t * (b[dn] - b[up]);
+      }
+    }
+  }
+}
+
 constexpr int kMaxBoxFactor = 257;  // BoxReduce's column sums of k bytes fit 16 bits
 
 // The mean of each k x k block of an 8-bit BGR image, rounded (the last
@@ -834,7 +975,8 @@ double PolishedRow(const cv::Mat& bgr, int k, int x, double y) {
 // Scratch images of one extraction (work size; `_h` at half of it).
 struct Workspace {
   cv::Mat reduced, small, steps, sky, bins, steps_h, sky_h, persistent, unary, deviation, darker, clean;
-  std::vector<uint16_t> row_sums;
+  std::vector<uint16_t> row_sums, line_left, line_right;
+  std::vector<uint8_t> line_runs;
   LabPlanes lab, lab_h;  // transposed
   EdgePenalty pen, pen_h;
   std::vector<float> acc, sample;
@@ -1159,6 +1301,9 @@ Skyline ExtractSceneSkyline(const cv::Mat& image, const SkylineOptions& options,
   // without added pixel noise (measured), for 0.4 ms.
   const LabPlanes& work_t = ws.lab;
   LabConverter::Instance().ConvertTransposed(small, ws.lab);
+  // Cables across the sky erased before any boundary is sought (the
+  // topmost clear edge took the higher cable for the skyline).
+  EraseThinLines(ws.lab, ws.line_runs, ws.line_left, ws.line_right);
   const int ww = work_t.Rows(), wh = work_t.Cols();
 
   const double roll_rad = DegToRad(options.roll_hint_deg.value_or(0.0));

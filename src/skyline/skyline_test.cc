@@ -316,6 +316,54 @@ TEST(ExtractSkyline, DarkTreeInFrontOfTheHorizonIsNull) {
   EXPECT_TRUE(std::isfinite(s.y[100]));
 }
 
+// Two power cables sagging across the whole sky (dark grey, 2 px,
+// anti-aliased) of a photo whose sky pales from deep blue to white at the
+// horizon over snowy terrain: the topmost clear edge took the higher one
+// for the skyline, and the paler sky below it for terrain. They are erased
+// before the boundary is sought.
+TEST(ExtractSkyline, CablesAcrossTheSkyAreNotTheSkyline) {
+  const int w = 960, h = 600;
+  std::vector<double> truth(w);
+  cv::Mat img(h, w, CV_8UC3);
+  for (int x = 0; x < w; ++x) {
+    truth[x] = 300.0 + 0.05 * x + 20.0 * std::sin(x / 37.0) + 6.0 * std::sin(x / 9.0);
+    for (int y = 0; y < h; ++y) {
+      const double t = std::min(1.0, y / truth[x]);  // 0 at the top, 1 at the horizon
+      img.at<cv::Vec3b>(y, x) =
+          y + 0.5 < truth[x]
+              ? cv::Vec3b(static_cast<uint8_t>(200 + 40 * t), static_cast<uint8_t>(120 + 110 * t),
+                          static_cast<uint8_t>(60 + 165 * t))
+              : cv::Vec3b(static_cast<uint8_t>(205 + (x * 7 + y * 13) % 30), static_cast<uint8_t>(200 + (x * 5 + y * 11) % 30),
+                          static_cast<uint8_t>(195 + (x * 3 + y * 17) % 30));
+    }
+  }
+  std::vector<cv::Point> upper, lower;
+  for (int x = 0; x < w; ++x) {
+    const double t = (x - w / 2.0) / (w / 2.0);
+    upper.emplace_back(x, static_cast<int>(std::lround(90.0 + 40.0 * (1.0 - t * t))));
+    lower.emplace_back(x, static_cast<int>(std::lround(170.0 + 40.0 * (1.0 - t * t))));
+  }
+  cv::polylines(img, std::vector<std::vector<cv::Point>>{upper, lower}, false, cv::Scalar(40, 40, 40), 2, cv::LINE_AA);
+  const Skyline s = ExtractSkyline(img, SkylineOptions{});
+  EXPECT_GE(WithinPx(s, truth, 2.0), w * 90 / 100);
+}
+
+// A dark rock crest, 6 px thick, between a white sky and white snow of
+// the sky's colour (an overcast winter day): a thin line between two equal
+// colours, as a cable is, but the skyline.
+TEST(ExtractSkyline, AThinDarkCrestBetweenWhiteSkyAndSnowIsTheSkyline) {
+  const int w = 960, h = 600;
+  cv::Mat img(h, w, CV_8UC3, cv::Scalar(236, 236, 234));
+  std::vector<double> truth(w);
+  for (int x = 0; x < w; ++x) {
+    truth[x] = 200.0 + 0.05 * x + 20.0 * std::sin(x / 37.0);
+    for (int y = static_cast<int>(std::ceil(truth[x] - 0.5)); y < h; ++y)
+      img.at<cv::Vec3b>(y, x) = y < truth[x] + 6.0 ? cv::Vec3b(60, 62, 66) : cv::Vec3b(232, 233, 233);
+  }
+  const Skyline s = ExtractSkyline(img, SkylineOptions{});
+  EXPECT_GE(WithinPx(s, truth, 2.0), w * 90 / 100);
+}
+
 // Flat sky rows above band_top, a flat band down to ground_top, and
 // ground whose green channel carries a fine texture (12 levels).
 cv::Mat SkyOverBandOverGround(int w, int h, int band_top, int ground_top, const cv::Vec3b& sky, const cv::Vec3b& band,
