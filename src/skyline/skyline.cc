@@ -764,6 +764,11 @@ HR_VECTOR_CLONES void EraseThinLines(LabPlanes& lab, std::vector<uint8_t>& run_l
     for (int r = 2; r + 3 < h; ++r) {
       const int up = r - 1;
       if (std::abs(l[up - 1] - l[up]) > kLineSameDeltaE) continue;
+      // No row within reach departs from the row above by kLineDeltaE: no
+      // run starts here (most rows of a smooth sky or of terrain).
+      float reach2 = 0.0f;
+      for (int k = r; k < std::min(h, r + kLineMaxRows); ++k) reach2 = std::max(reach2, de2(k, up));
+      if (reach2 < kLineDeltaE * kLineDeltaE) continue;
       for (int len = 1; len <= kLineMaxRows; ++len) {
         const int dn = r + len;  // the rows either side: up and dn
         if (dn + 1 >= h) break;
