@@ -721,22 +721,19 @@ HR_VECTOR_CLONES void VetoSubtleDepartures(const cv::Mat& deviation, const LabPl
   }
 }
 
-// Thin lines across the sky (power lines, a wire, a contrail): per work
-// column, a run of one or two rows that departs from the colour the rows
-// either side of it share, those rows each smooth, is replaced by the line
-// between them. The sky/terrain boundary is no such run: the colours above
-// and below it differ.
 // Thin lines across the sky (power lines, a cable, a contrail): per work
-// column, a run of 1-4 rows that departs by more than kLineDeltaE (and 2.5
-// times their own difference) from the two rows either side of it, those
-// rows within kLineSameDeltaE of each other and each as light as its outer
-// neighbour to within that; runs that continue one another (start rows
-// within 1 from column to column, or 2 over a column where none was found)
-// over at least a twentieth of the width
-// are replaced by the line between the rows either side. The sky/terrain
-// boundary is no such run (the colours above and below it differ), and
-// texture's runs are short. Measured on the real photos with two cables
-// across their sky: see docs/MEASUREMENTS.md, "Cables across the sky".
+// column, a run of 1-kLineMaxRows rows that departs by more than
+// kLineDeltaE (and 2.5 times their own difference) from the two rows either
+// side of it, those rows within kLineSameDeltaE of each other and each as
+// light as its outer neighbour to within that (lightness only: JPEG bleeds
+// a dark line's chroma into the rows beside it). Runs that continue one
+// another over at least 1/kLineTrackShare of the width, and lie on a line
+// over kLineStraightColumns columns each side, are replaced by the line
+// between the rows either side. The sky/terrain boundary is no such run
+// (the colours above and below it differ), texture's runs are short, and a
+// thin crest between an overcast sky and snow of its colour bends. Measured
+// on the real photos with two cables across their sky: docs/MEASUREMENTS.md,
+// "Cables across the sky".
 constexpr float kLineSameDeltaE = 3.0f;
 constexpr float kLineDeltaE = 4.0f;
 constexpr int kLineMaxRows = 5;
@@ -789,8 +786,8 @@ HR_VECTOR_CLONES void EraseThinLines(LabPlanes& lab, std::vector<uint8_t>& run_l
   // The longest track through each run, from the left and from the right.
   left.assign(n, 0);
   right.assign(n, 0);
-  // A track continues from the run in the next column (start row within 1)
-  // or, over a column where the run was not found, the one after (within 2).
+  // A track continues from a run k columns on (start row within k), over up
+  // to kLineTrackStep - 1 columns where none was found.
   auto longest = [&](const std::vector<uint16_t>& v, int c, int r, int step) {
     uint16_t best = 0;
     for (int k = 1; k <= kLineTrackStep; ++k) {
