@@ -1188,10 +1188,14 @@ def main():
         rows = json.load(open(source[:source.rfind(".")] + ".truth.json")).get("skyline_row") or []
         return rows if any(v is not None for v in rows) else extract_skyline(binary, source)["y"]
 
-    def clouded(share):
-        # A cap cloud over the highest stretch of the skyline, JPEG quality 95, EXIF kept.
+    def painted(draw):
+        # The photo with draw(cv2, image, skyline rows) painted over it, JPEG quality 95, EXIF kept.
         return lambda cv2, source, path: write_jpeg_with_exif(
-            cv2, cap_cloud(cv2, cv2.imread(source), skyline_rows(source), share), source, path)
+            cv2, draw(cv2, cv2.imread(source), skyline_rows(source)), source, path)
+
+    def clouded(share):
+        # A cap cloud over the highest stretch of the skyline.
+        return painted(lambda cv2, image, rows: cap_cloud(cv2, image, rows, share))
 
     def sky_clouded(cv2, source, path):
         # A cumulus floating in the photo's widest sky; a photo with too
@@ -1199,14 +1203,6 @@ def main():
         image = cv2.imread(source)
         clouded_image = sky_cloud(cv2, image, skyline_rows(source))
         return write_jpeg_with_exif(cv2, image if clouded_image is None else clouded_image, source, path)
-
-    def occluded(cv2, source, path):
-        # A conifer and a power pole standing into the sky.
-        return write_jpeg_with_exif(cv2, occluders(cv2, cv2.imread(source), skyline_rows(source)), source, path)
-
-    def cabled(cv2, source, path):
-        # Two power cables across the sky.
-        return write_jpeg_with_exif(cv2, cables(cv2, cv2.imread(source), skyline_rows(source)), source, path)
 
     def resized(factor):
         # Bicubic up (a DSLR's or a phone's pixel count); area averaging down
@@ -1237,9 +1233,9 @@ def main():
             ("cloud-small", ".cloud10.jpg", "no prior, a cap cloud over the highest tenth of the skyline (JPEG "
              "quality 95, EXIF kept)", clouded(0.1)),
             ("occluder", ".occluder.jpg", "no prior, a conifer and a power pole standing into the sky (JPEG "
-             "quality 95, EXIF kept)", occluded),
+             "quality 95, EXIF kept)", painted(occluders)),
             ("cables", ".cables.jpg", "no prior, two power cables sagging across the sky (JPEG quality 95, "
-             "EXIF kept)", cabled),
+             "EXIF kept)", painted(cables)),
             ("turned", ".turned.jpg", "no prior, stored a quarter turn with EXIF Orientation 6 (a camera held "
              "upright)", turned_copy)):
         ring = "ring-" + mode in modes and mode != "noexif"  # ring-noexif: the ring with --no-exif (above)
