@@ -82,6 +82,17 @@ Modes (each a per-photo table and a summary):
             1000 columns, their ends at 35% and 60% of the median sky height
             above the skyline (--floors cables=N); ring-cables: the ring on
             those copies
+  contrails (not in the default set; seconds) plain on each photo with
+            two white aircraft contrails across its sky, a fresh one
+            (Gaussian sigma 2.5 px per 1000 columns, 75% opacity) and a
+            spread one (9 px, 35%), rising from 70% to 25% and from 40% to
+            15% of the median sky height above the skyline, never within
+            3 px of it (--floors contrails=N); ring-contrails: the ring on
+            those copies
+  sun       (not in the default set; seconds) plain on each photo with the
+            sun low over a ridge at 70% of the width: a clipped disc, a warm
+            glow veiling the ridge under it and three flare rings (--floors
+            sun=N); ring-sun: the ring on those copies
   turned    (not in the default set; seconds) plain on each photo stored a
             quarter turn anticlockwise with EXIF Orientation 6 and its
             recorded size the stored pixels' (a camera held upright): decoded
@@ -654,6 +665,60 @@ def cables(cv2, image, rows):
     return out
 
 
+def contrails(cv2, image, rows):
+    """Two aircraft contrails across the sky, as over the Alps on most clear
+    days: straight, white, soft-edged (a fresh one, Gaussian core 2.5 px
+    sigma per 1000 columns at up to 75% opacity, and an older one spread to
+    9 px at 35%), rising across the width from 70% to 25% and from 40% to
+    15% of the median sky height above the skyline (`rows`: the skyline row
+    per column, None where unknown). Contrails are far above any ridge: no
+    terrain pixel within 3 px of the skyline changes (the skyline taken
+    across untraced columns from the traced ones either side)."""
+    import numpy as np
+    h, w = image.shape[:2]
+    s = w / 1000.0
+    known = [float(v) for v in rows if v is not None]
+    sky = float(np.median(known)) if known else h / 2.0
+    yy, xx = np.mgrid[0:h, 0:w].astype(np.float64)
+    alpha = np.zeros((h, w))
+    for a, b, sigma, opacity in ((0.7, 0.25, 2.5, 0.75), (0.4, 0.15, 9.0, 0.35)):
+        line = sky * a + (sky * b - sky * a) * xx / (w - 1)
+        alpha = np.maximum(alpha, opacity * np.exp(-0.5 * ((yy - line) / (sigma * s)) ** 2))
+    xs = [x for x, v in enumerate(rows) if v is not None]
+    top = (np.interp(np.arange(w), xs, [float(rows[x]) for x in xs]) if xs else np.full(w, float(h))) - 3.0
+    alpha[yy >= top[None, :]] = 0.0
+    white = np.array([250.0, 250.0, 248.0])
+    out = image.astype(np.float64) * (1.0 - alpha[..., None]) + white * alpha[..., None]
+    return np.clip(out + 0.5, 0, 255).astype(np.uint8)
+
+
+def sun_glare(cv2, image, rows):
+    """The sun low over a ridge, as in an evening photo against the light: a
+    clipped white disc (radius 1.5% of the width) centred its own diameter
+    above the skyline at 70% of the width (`rows`: the skyline row per
+    column, None where unknown), in a warm glow that falls off as
+    exp(-r / 6% of the width) and veils the ridge under it, and three flare
+    rings along the line through the image centre."""
+    import numpy as np
+    h, w = image.shape[:2]
+    xs = int(0.7 * w)
+    near = [(abs(x - xs), float(v)) for x, v in enumerate(rows) if v is not None]
+    ys = (min(near)[1] if near else h / 2.0) - 0.03 * w
+    yy, xx = np.mgrid[0:h, 0:w].astype(np.float64)
+    r = np.hypot(xx - xs, yy - ys)
+    glow = np.exp(-r / (0.06 * w))
+    glow[r <= 0.015 * w] = 1.0
+    out = image.astype(np.float64)
+    warm = np.array([235.0, 250.0, 255.0])  # BGR
+    out = out * (1.0 - 0.95 * glow[..., None]) + warm * 0.95 * glow[..., None]
+    cx, cy = w / 2.0, h / 2.0
+    for t, radius, strength in ((0.5, 0.02, 0.25), (1.3, 0.035, 0.18), (1.7, 0.012, 0.3)):
+        fx, fy = cx + (cx - xs) * t, cy + (cy - ys) * t
+        ring = np.exp(-np.hypot(xx - fx, yy - fy) / (radius * w)) * strength
+        out = out * (1.0 - ring[..., None]) + np.array([200.0, 255.0, 230.0]) * ring[..., None]
+    return np.clip(out + 0.5, 0, 255).astype(np.uint8)
+
+
 def turned_copy(cv2, source, path):
     """The photo stored a quarter turn anticlockwise with EXIF Orientation 6
     (turn clockwise to show) and its recorded size the stored pixels', as a
@@ -1079,7 +1144,7 @@ def main():
     floors = {"plain": 12, "camera": 12, "initial": 13, "skyline": 0.9, "thin": 0.9, "skyline-given": 0.95,
               "registered-skyline": 0.9, "registered-skyline-given": 0.95,
               "thin-given": 0.95, "ring": 0, "ring-camera": 0, "ring-initial": 0, "ring-sensors": 0, "ring-noexif": 0, "ring-hfov": 0, "ring-range": 0, "ring-noalt": 0, "ring-noalt-hfov": 0, "hfov": 12,
-              "sensors": 0, "noexif": 0, "reencode": 0, "gray": 0, "upscale2": 0, "upscale4": 0, "downscale2": 0, "jpeg50": 0, "jpeg30": 0, "crop": 0, "crop-narrow": 0, "ring-crop": 0, "ring-crop-narrow": 0, "stations": 0, "turned": 0, "banner": 0, "cloud": 0, "cloud-small": 0, "sky-cloud": 0, "occluder": 0, "cables": 0, "gray-skyline": 0.0, "stability": 1.0,
+              "sensors": 0, "noexif": 0, "reencode": 0, "gray": 0, "upscale2": 0, "upscale4": 0, "downscale2": 0, "jpeg50": 0, "jpeg30": 0, "crop": 0, "crop-narrow": 0, "ring-crop": 0, "ring-crop-narrow": 0, "stations": 0, "turned": 0, "banner": 0, "cloud": 0, "cloud-small": 0, "sky-cloud": 0, "occluder": 0, "cables": 0, "contrails": 0, "sun": 0, "gray-skyline": 0.0, "stability": 1.0,
               "jpeg30-skyline": 0.0, "photometric": 0, "photometric-skyline": 0.0, "thin-framed": 0.0,
               "thin-framed-given": 0.0}
     for kv in (opt("--floors") or "").split(","):
@@ -1236,6 +1301,10 @@ def main():
              "quality 95, EXIF kept)", painted(occluders)),
             ("cables", ".cables.jpg", "no prior, two power cables sagging across the sky (JPEG quality 95, "
              "EXIF kept)", painted(cables)),
+            ("contrails", ".contrails.jpg", "no prior, two aircraft contrails across the sky (JPEG quality 95, "
+             "EXIF kept)", painted(contrails)),
+            ("sun", ".sun.jpg", "no prior, the sun low over a ridge with its glow and flare (JPEG quality 95, "
+             "EXIF kept)", painted(sun_glare)),
             ("turned", ".turned.jpg", "no prior, stored a quarter turn with EXIF Orientation 6 (a camera held "
              "upright)", turned_copy)):
         ring = "ring-" + mode in modes and mode != "noexif"  # ring-noexif: the ring with --no-exif (above)

@@ -721,7 +721,7 @@ HR_VECTOR_CLONES void VetoSubtleDepartures(const cv::Mat& deviation, const LabPl
   }
 }
 
-// Thin lines across the sky (power lines, a cable, a contrail): per work
+// Thin lines across the sky (power lines, a cable): per work
 // column, a run of 1-kLineMaxRows rows that departs by more than
 // kLineDeltaE (and 2.5 times their own difference) from the two rows either
 // side of it, those rows within kLineSameDeltaE of each other and each as
@@ -731,9 +731,14 @@ HR_VECTOR_CLONES void VetoSubtleDepartures(const cv::Mat& deviation, const LabPl
 // over kLineStraightColumns columns each side, are replaced by the line
 // between the rows either side. The sky/terrain boundary is no such run
 // (the colours above and below it differ), texture's runs are short, and a
-// thin crest between an overcast sky and snow of its colour bends. Measured
-// on the real photos with two cables across their sky: docs/MEASUREMENTS.md,
-// "Cables across the sky".
+// thin crest between an overcast sky and snow of its colour bends. Wider,
+// soft bands (a contrail, a strip of cloud: more than kLineMaxRows rows)
+// must leave the colour of the row above within kBandOnsetRows, come back to
+// it, be lighter than both rows either side all through (a far ridge in
+// haze between a pale sky and snow of its colour is darker) and track over
+// 1/kBandTrackShare of the width. Measured on the real photos with two
+// cables, or two contrails, across their sky: docs/MEASUREMENTS.md, "Cables
+// across the sky" and "Contrails".
 constexpr float kLineSameDeltaE = 3.0f;
 constexpr float kLineDeltaE = 4.0f;
 constexpr int kLineMaxRows = 5;
@@ -741,10 +746,15 @@ constexpr int kLineStraightColumns = 16;  // columns each side over which a cabl
 constexpr double kLineStraightRows = 2.0;  // ... to within this many rows
 constexpr int kLineTrackStep = 4;  // a track continues over up to 3 columns where no run was found
 constexpr int kLineTrackShare = 12;  // a track spans at least 1/12 of the work width (and 8 columns)
+constexpr int kBandRows = 24;       // a band's rows from the one above it to the one below (per 512 columns) ...
+constexpr int kBandOnsetRows = 4;   // ... its colour leaving that of the row above within this many rows ...
+constexpr int kBandTrackShare = 6;  // ... and its track spanning at least 1/6 of the work width
 HR_VECTOR_CLONES void EraseThinLines(LabPlanes& lab, std::vector<uint8_t>& run_len, std::vector<uint16_t>& left,
                                      std::vector<uint16_t>& right) {
   const int w = lab.Rows(), h = lab.Cols();
   const int min_track = std::max(8, w / kLineTrackShare);
+  const int band_rows = std::max(kLineMaxRows + 2, w * kBandRows / 512);
+  const int min_band_track = std::max(8, w / kBandTrackShare);
   const size_t n = static_cast<size_t>(w) * h;
   run_len.assign(n, 0);
   constexpr float same2 = kLineSameDeltaE * kLineSameDeltaE;
@@ -777,9 +787,40 @@ HR_VECTOR_CLONES void EraseThinLines(LabPlanes& lab, std::vector<uint8_t>& run_l
         if (peak2 < std::max(kLineDeltaE * kLineDeltaE, 6.25f * across2)) continue;
         runs[r] = static_cast<uint8_t>(len);
         any = true;
-        r += len;
         break;
       }
+      if (!runs[r]) {
+        // A wider, soft band (a contrail, a strip of cloud): the rows leave
+        // the colour of the row above within kBandOnsetRows and come back to
+        // it (to within kLineSameDeltaE) within band_rows of it.
+        const int last = std::min(h - 2, up + band_rows);
+        int k = r, left_at = -1;
+        for (; k <= last; ++k) {
+          const bool off = de2(k, up) > same2;
+          if (left_at < 0) {
+            if (off) left_at = k;
+            else if (k - up >= kBandOnsetRows) break;
+          } else if (!off) {
+            break;
+          }
+        }
+        const int dn = k;
+        if (left_at >= 0 && dn <= last && dn - r > kLineMaxRows && std::abs(l[dn] - l[dn + 1]) <= kLineSameDeltaE) {
+          const float across2 = de2(up, dn);
+          // Lighter than the sky either side all through: a far ridge's
+          // darker band between a pale sky and snow of its colour is terrain.
+          const float floor_l = std::max(l[up], l[dn]);
+          float peak2 = 0.0f;
+          bool lighter = true;
+          for (int i = left_at; i < dn && lighter; ++i)
+            peak2 = std::max(peak2, std::min(de2(i, up), de2(i, dn))), lighter = l[i] > floor_l;
+          if (lighter && peak2 >= std::max(kLineDeltaE * kLineDeltaE, 6.25f * across2)) {
+            runs[r] = static_cast<uint8_t>(dn - r);
+            any = true;
+          }
+        }
+      }
+      r += runs[r];
     }
   }
   if (!any) return;
@@ -854,7 +895,8 @@ HR_VECTOR_CLONES void EraseThinLines(LabPlanes& lab, std::vector<uint8_t>& run_l
     for (int r = 0; r < h; ++r) {
       const size_t i = static_cast<size_t>(c) * h + r;
       const int len = run_len[i];
-      if (!len || left[i] + right[i] - 1 < min_track || !straight(c, r)) continue;
+      if (!len || left[i] + right[i] - 1 < (len > kLineMaxRows ? min_band_track : min_track) || !straight(c, r))
+        continue;
       const int up = r - 1, dn = r + len;
       for (int k = r; k < dn; ++k) {
         const float t = static_cast<float>(k - up) / static_cast<float>(dn - up);

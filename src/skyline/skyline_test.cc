@@ -364,6 +364,67 @@ TEST(ExtractSkyline, AThinDarkCrestBetweenWhiteSkyAndSnowIsTheSkyline) {
   EXPECT_GE(WithinPx(s, truth, 2.0), w * 90 / 100);
 }
 
+// A blue sky (deep at the top, paler towards the horizon) over snowy,
+// textured terrain, with `contrails` soft white bands across it (centre row
+// at the left and right edges, Gaussian sigma in px, peak opacity).
+struct Contrail {
+  double left_row, right_row, sigma, opacity;
+};
+cv::Mat SkyWithContrails(int w, int h, std::vector<double>& truth, const std::vector<Contrail>& contrails) {
+  cv::Mat img(h, w, CV_8UC3);
+  truth.assign(w, 0.0);
+  for (int x = 0; x < w; ++x) {
+    truth[x] = 330.0 + 0.04 * x + 18.0 * std::sin(x / 41.0) + 5.0 * std::sin(x / 11.0);
+    for (int y = 0; y < h; ++y) {
+      const double t = std::min(1.0, y / truth[x]);
+      cv::Vec3d c = y + 0.5 < truth[x] ? cv::Vec3d(190 + 30 * t, 120 + 70 * t, 60 + 90 * t)
+                                       : cv::Vec3d(200 + (x * 7 + y * 13) % 40, 195 + (x * 5 + y * 11) % 40,
+                                                   190 + (x * 3 + y * 17) % 40);
+      if (y + 0.5 < truth[x] - 3.0)
+        for (const Contrail& k : contrails) {
+          const double row = k.left_row + (k.right_row - k.left_row) * x / (w - 1.0);
+          const double a = k.opacity * std::exp(-0.5 * std::pow((y - row) / k.sigma, 2));
+          c = c * (1.0 - a) + cv::Vec3d(250, 250, 248) * a;
+        }
+      img.at<cv::Vec3b>(y, x) = cv::Vec3b(cv::saturate_cast<uint8_t>(c[0]), cv::saturate_cast<uint8_t>(c[1]),
+                                          cv::saturate_cast<uint8_t>(c[2]));
+    }
+  }
+  return img;
+}
+
+// Two aircraft contrails across the sky, a fresh one (sigma 2.5 px) and an
+// older, spread one (sigma 9 px), wider than a cable: the first clear edge
+// from the top took the fresh one's lower edge for the skyline. They are
+// erased as bands that leave the sky's colour and come back to it.
+TEST(ExtractSkyline, ContrailsAcrossTheSkyAreNotTheSkyline) {
+  std::vector<double> truth;
+  const cv::Mat img = SkyWithContrails(960, 600, truth, {{230.0, 90.0, 2.5, 0.75}, {70.0, 150.0, 9.0, 0.35}});
+  const Skyline s = ExtractSkyline(img, SkylineOptions{});
+  EXPECT_GE(WithinPx(s, truth, 2.0), 960 * 90 / 100);
+}
+
+// A far ridge in haze, a straight band 14 px high, darker and bluer than a
+// pale sky and standing over snow of that sky's colour: a band that leaves
+// the sky's colour and comes back to it, as a contrail does, but darker:
+// the skyline.
+TEST(ExtractSkyline, AHazyFarRidgeOverSnowOfTheSkysColourIsTheSkyline) {
+  const int w = 960, h = 600;
+  cv::Mat img(h, w, CV_8UC3);
+  std::vector<double> truth(w);
+  for (int x = 0; x < w; ++x) {
+    truth[x] = 260.0 - 0.03 * x;
+    for (int y = 0; y < h; ++y) {
+      const cv::Vec3b sky(228, 222, 216), ridge(200, 180, 165);
+      const cv::Vec3b snow(static_cast<uint8_t>(226 + (x * 7 + y * 13) % 5), static_cast<uint8_t>(221 + (x * 5 + y * 11) % 4),
+                           static_cast<uint8_t>(215 + (x * 3 + y * 17) % 4));
+      img.at<cv::Vec3b>(y, x) = y + 0.5 < truth[x] ? sky : y + 0.5 < truth[x] + 14.0 ? ridge : snow;
+    }
+  }
+  const Skyline s = ExtractSkyline(img, SkylineOptions{});
+  EXPECT_GE(WithinPx(s, truth, 2.0), w * 90 / 100);
+}
+
 // Flat sky rows above band_top, a flat band down to ground_top, and
 // ground whose green channel carries a fine texture (12 levels).
 cv::Mat SkyOverBandOverGround(int w, int h, int band_top, int ground_top, const cv::Vec3b& sky, const cv::Vec3b& band,
