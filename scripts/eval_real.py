@@ -166,6 +166,9 @@ Modes (each a per-photo table and a summary):
             false ones (0)
   wrong-jpeg30  (not in the default set) the wrong probes on the quality-30
             copies
+  wrong-occluder, wrong-cables, wrong-contrails, wrong-sun  (not in the
+            default set) the wrong probes (2-10 km, other regions' DEMs) on
+            the occluder, cable, contrail and sun copies
   photometric  (not in the default set; about 2 minutes) plain on each photo
             changed as another camera, exposure or weather would change it:
             1.7 stops darker, 1.3 stops brighter (clipped), sensor noise,
@@ -1456,7 +1459,15 @@ def main():
                                       ("wrong-banner", ".wrong.banner.jpg", "the photos under a timestamp strip",
                                        bannered),
                                       ("wrong-jpeg30", ".wrong.q30.jpg", "the photos as JPEG quality 30",
-                                       compressed(30))):
+                                       compressed(30)),
+                                      ("wrong-occluder", ".wrong.occluder.jpg", "a conifer and a power pole in "
+                                       "the sky", painted(occluders)),
+                                      ("wrong-cables", ".wrong.cables.jpg", "two power cables across the sky",
+                                       painted(cables)),
+                                      ("wrong-contrails", ".wrong.contrails.jpg", "two contrails across the sky",
+                                       painted(contrails)),
+                                      ("wrong-sun", ".wrong.sun.jpg", "the sun low over a ridge",
+                                       painted(sun_glare))):
         if mode not in modes:
             continue
         cv2 = opencv_for(mode)
