@@ -738,7 +738,7 @@ HR_VECTOR_CLONES void VetoSubtleDepartures(const cv::Mat& deviation, const LabPl
 // haze between a pale sky and snow of its colour is darker) and track over
 // 1/kBandTrackShare of the width. Measured on the real photos with two
 // cables, or two contrails, across their sky: docs/MEASUREMENTS.md, "Cables
-// across the sky" and "Contrails".
+// across the sky" and "Contrails across the sky".
 constexpr float kLineSameDeltaE = 3.0f;
 constexpr float kLineDeltaE = 4.0f;
 constexpr int kLineMaxRows = 5;
@@ -753,7 +753,7 @@ HR_VECTOR_CLONES void EraseThinLines(LabPlanes& lab, std::vector<uint8_t>& run_l
                                      std::vector<uint16_t>& right) {
   const int w = lab.Rows(), h = lab.Cols();
   const int min_track = std::max(8, w / kLineTrackShare);
-  const int band_rows = std::max(kLineMaxRows + 2, w * kBandRows / 512);
+  const int band_rows = std::clamp(w * kBandRows / 512, kLineMaxRows + 2, 250);  // run lengths are 8-bit
   const int min_band_track = std::max(8, w / kBandTrackShare);
   const size_t n = static_cast<size_t>(w) * h;
   run_len.assign(n, 0);
