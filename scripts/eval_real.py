@@ -93,6 +93,12 @@ Modes (each a per-photo table and a summary):
             sun low over a ridge at 70% of the width: a clipped disc, a warm
             glow veiling the ridge under it and three flare rings (--floors
             sun=N); ring-sun: the ring on those copies
+  roof      (not in the default set; seconds) plain on each photo with a
+            hut's gable in the foreground, its ridge half the sky's height
+            above the skyline at 15% of the width, its eaves from the left
+            edge to 32% of it: a quarter of the skyline hidden behind
+            straight edges no DEM has (--floors roof=N); ring-roof: the ring
+            on those copies
   turned    (not in the default set; seconds) plain on each photo stored a
             quarter turn anticlockwise with EXIF Orientation 6 and its
             recorded size the stored pixels' (a camera held upright): decoded
@@ -166,9 +172,10 @@ Modes (each a per-photo table and a summary):
             false ones (0)
   wrong-jpeg30  (not in the default set) the wrong probes on the quality-30
             copies
-  wrong-occluder, wrong-cables, wrong-contrails, wrong-sun  (not in the
-            default set) the wrong probes (2-10 km, other regions' DEMs) on
-            the occluder, cable, contrail and sun copies
+  wrong-occluder, wrong-cables, wrong-contrails, wrong-sun, wrong-roof
+            (not in the default set) the wrong probes (2-10 km, other
+            regions' DEMs) on the occluder, cable, contrail, sun and roof
+            copies
   photometric  (not in the default set; about 2 minutes) plain on each photo
             changed as another camera, exposure or weather would change it:
             1.7 stops darker, 1.3 stops brighter (clipped), sensor noise,
@@ -722,6 +729,28 @@ def sun_glare(cv2, image, rows):
     return np.clip(out + 0.5, 0, 255).astype(np.uint8)
 
 
+def roof(cv2, image, rows):
+    """A hut's roof in the foreground, as from a terrace: a dark brown
+    gable whose ridge stands half the sky's height above the skyline at 15%
+    of the width (`rows`: the skyline row per column, None where unknown),
+    its eaves reaching the left edge and 32% of the width at the photo's
+    height, a chimney on its right slope; a quarter of the skyline hidden
+    behind straight edges no DEM has."""
+    import numpy as np
+    h, w = image.shape[:2]
+    xs = [x for x, v in enumerate(rows) if v is not None]
+    sky = float(np.interp(0.15 * w, xs, [float(rows[x]) for x in xs])) if xs else h / 2.0
+    peak = (0.15 * w, max(4.0, 0.5 * sky))
+    out = image.copy()
+    poly = np.array([(-0.02 * w, h), (-0.02 * w, peak[1] + 0.17 * w * 0.6), peak,
+                     (0.32 * w, peak[1] + 0.17 * w * 0.6), (0.32 * w, h)], np.int32)
+    cv2.fillPoly(out, [poly], (30, 45, 70), cv2.LINE_AA)
+    cx = 0.24 * w
+    cy = peak[1] + (cx - peak[0]) * 0.6
+    cv2.rectangle(out, (int(cx), int(cy - 0.03 * w)), (int(cx + 0.025 * w), int(cy + 0.02 * w)), (40, 40, 48), -1)
+    return out
+
+
 def turned_copy(cv2, source, path):
     """The photo stored a quarter turn anticlockwise with EXIF Orientation 6
     (turn clockwise to show) and its recorded size the stored pixels', as a
@@ -1147,7 +1176,7 @@ def main():
     floors = {"plain": 12, "camera": 12, "initial": 13, "skyline": 0.9, "thin": 0.9, "skyline-given": 0.95,
               "registered-skyline": 0.9, "registered-skyline-given": 0.95,
               "thin-given": 0.95, "ring": 0, "ring-camera": 0, "ring-initial": 0, "ring-sensors": 0, "ring-noexif": 0, "ring-hfov": 0, "ring-range": 0, "ring-noalt": 0, "ring-noalt-hfov": 0, "hfov": 12,
-              "sensors": 0, "noexif": 0, "reencode": 0, "gray": 0, "upscale2": 0, "upscale4": 0, "downscale2": 0, "jpeg50": 0, "jpeg30": 0, "crop": 0, "crop-narrow": 0, "ring-crop": 0, "ring-crop-narrow": 0, "stations": 0, "turned": 0, "banner": 0, "cloud": 0, "cloud-small": 0, "sky-cloud": 0, "occluder": 0, "cables": 0, "contrails": 0, "sun": 0, "gray-skyline": 0.0, "stability": 1.0,
+              "sensors": 0, "noexif": 0, "reencode": 0, "gray": 0, "upscale2": 0, "upscale4": 0, "downscale2": 0, "jpeg50": 0, "jpeg30": 0, "crop": 0, "crop-narrow": 0, "ring-crop": 0, "ring-crop-narrow": 0, "stations": 0, "turned": 0, "banner": 0, "cloud": 0, "cloud-small": 0, "sky-cloud": 0, "occluder": 0, "cables": 0, "contrails": 0, "sun": 0, "roof": 0, "gray-skyline": 0.0, "stability": 1.0,
               "jpeg30-skyline": 0.0, "photometric": 0, "photometric-skyline": 0.0, "thin-framed": 0.0,
               "thin-framed-given": 0.0}
     for kv in (opt("--floors") or "").split(","):
@@ -1308,6 +1337,8 @@ def main():
              "EXIF kept)", painted(contrails)),
             ("sun", ".sun.jpg", "no prior, the sun low over a ridge with its glow and flare (JPEG quality 95, "
              "EXIF kept)", painted(sun_glare)),
+            ("roof", ".roof.jpg", "no prior, a hut's roof in the foreground hiding a quarter of the skyline "
+             "(JPEG quality 95, EXIF kept)", painted(roof)),
             ("turned", ".turned.jpg", "no prior, stored a quarter turn with EXIF Orientation 6 (a camera held "
              "upright)", turned_copy)):
         ring = "ring-" + mode in modes and mode != "noexif"  # ring-noexif: the ring with --no-exif (above)
@@ -1467,7 +1498,9 @@ def main():
                                       ("wrong-contrails", ".wrong.contrails.jpg", "two contrails across the sky",
                                        painted(contrails)),
                                       ("wrong-sun", ".wrong.sun.jpg", "the sun low over a ridge",
-                                       painted(sun_glare))):
+                                       painted(sun_glare)),
+                                      ("wrong-roof", ".wrong.roof.jpg", "a hut's roof in the foreground",
+                                       painted(roof))):
         if mode not in modes:
             continue
         cv2 = opencv_for(mode)
