@@ -733,9 +733,10 @@ def roof(cv2, image, rows):
     """A hut's roof in the foreground, as from a terrace: a dark brown
     gable whose ridge stands half the sky's height above the skyline at 15%
     of the width (`rows`: the skyline row per column, None where unknown),
-    its eaves reaching the left edge and 32% of the width at the photo's
-    height, a chimney on its right slope; a quarter of the skyline hidden
-    behind straight edges no DEM has."""
+    its slopes falling 0.6 px per column to eaves past the left edge and at
+    32% of the width, its walls down to the bottom edge, a chimney on its
+    right slope: a quarter of the skyline hidden behind straight edges no
+    DEM has."""
     import numpy as np
     h, w = image.shape[:2]
     xs = [x for x, v in enumerate(rows) if v is not None]
