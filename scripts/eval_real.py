@@ -96,7 +96,7 @@ Modes (each a per-photo table and a summary):
   roof      (not in the default set; seconds) plain on each photo with a
             hut's gable in the foreground, its ridge half the sky's height
             above the skyline at 15% of the width, its eaves from the left
-            edge to 32% of it: a quarter of the skyline hidden behind
+            edge to 32% of it: a third of the skyline hidden behind
             straight edges no DEM has (--floors roof=N); ring-roof: the ring
             on those copies
   turned    (not in the default set; seconds) plain on each photo stored a
@@ -735,7 +735,7 @@ def roof(cv2, image, rows):
     of the width (`rows`: the skyline row per column, None where unknown),
     its slopes falling 0.6 px per column to eaves past the left edge and at
     32% of the width, its walls down to the bottom edge, a chimney on its
-    right slope: a quarter of the skyline hidden behind straight edges no
+    right slope: a third of the skyline hidden behind straight edges no
     DEM has."""
     import numpy as np
     h, w = image.shape[:2]
@@ -1338,7 +1338,7 @@ def main():
              "EXIF kept)", painted(contrails)),
             ("sun", ".sun.jpg", "no prior, the sun low over a ridge with its glow and flare (JPEG quality 95, "
              "EXIF kept)", painted(sun_glare)),
-            ("roof", ".roof.jpg", "no prior, a hut's roof in the foreground hiding a quarter of the skyline "
+            ("roof", ".roof.jpg", "no prior, a hut's roof in the foreground hiding a third of the skyline "
              "(JPEG quality 95, EXIF kept)", painted(roof)),
             ("turned", ".turned.jpg", "no prior, stored a quarter turn with EXIF Orientation 6 (a camera held "
              "upright)", turned_copy)):
