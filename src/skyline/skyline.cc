@@ -767,6 +767,13 @@ HR_VECTOR_CLONES void EraseThinLines(LabPlanes& lab, std::vector<uint8_t>& run_l
       const float dl = l[i] - l[j], da = a[i] - a[j], db = b[i] - b[j];
       return dl * dl + da * da + db * db;
     };
+    // Rows r..dn-1 stand out from the rows either side, up and dn: some row
+    // departs from both by kLineDeltaE and by 2.5 times their own difference.
+    auto stands_out = [&](int r, int up, int dn) {
+      float peak2 = 0.0f;
+      for (int k = r; k < dn; ++k) peak2 = std::max(peak2, std::min(de2(k, up), de2(k, dn)));
+      return peak2 >= std::max(kLineDeltaE * kLineDeltaE, 6.25f * de2(up, dn));
+    };
     uint8_t* runs = run_len.data() + static_cast<size_t>(c) * h;
     for (int r = 2; r + 3 < h; ++r) {
       const int up = r - 1;
@@ -780,11 +787,7 @@ HR_VECTOR_CLONES void EraseThinLines(LabPlanes& lab, std::vector<uint8_t>& run_l
         const int dn = r + len;  // the rows either side: up and dn
         if (dn + 1 >= h) break;
         if (std::abs(l[dn] - l[dn + 1]) > kLineSameDeltaE) continue;
-        const float across2 = de2(up, dn);
-        if (across2 > same2) continue;
-        float peak2 = 0.0f;
-        for (int k = r; k < dn; ++k) peak2 = std::max(peak2, std::min(de2(k, up), de2(k, dn)));
-        if (peak2 < std::max(kLineDeltaE * kLineDeltaE, 6.25f * across2)) continue;
+        if (de2(up, dn) > same2 || !stands_out(r, up, dn)) continue;
         runs[r] = static_cast<uint8_t>(len);
         any = true;
         break;
@@ -806,15 +809,11 @@ HR_VECTOR_CLONES void EraseThinLines(LabPlanes& lab, std::vector<uint8_t>& run_l
         }
         const int dn = k;
         if (left_at >= 0 && dn <= last && dn - r > kLineMaxRows && std::abs(l[dn] - l[dn + 1]) <= kLineSameDeltaE) {
-          const float across2 = de2(up, dn);
           // Lighter than the sky either side all through: a far ridge's
           // darker band between a pale sky and snow of its colour is terrain.
           const float floor_l = std::max(l[up], l[dn]);
-          float peak2 = 0.0f;
-          bool lighter = true;
-          for (int i = left_at; i < dn && lighter; ++i)
-            peak2 = std::max(peak2, std::min(de2(i, up), de2(i, dn))), lighter = l[i] > floor_l;
-          if (lighter && peak2 >= std::max(kLineDeltaE * kLineDeltaE, 6.25f * across2)) {
+          const bool lighter = std::all_of(l + left_at, l + dn, [&](float li) { return li > floor_l; });
+          if (lighter && stands_out(r, up, dn)) {
             runs[r] = static_cast<uint8_t>(dn - r);
             any = true;
           }
