@@ -356,10 +356,42 @@ double Median(std::vector<double> v) {
   std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
   return v[v.size() / 2];
 }
+
+// Misses above the DEM horizon in runs that rise out of the fitted skyline:
+// something nearer than the DEM shows (a tree, a roof, a cap cloud) can
+// only hide the horizon behind it, so that the sky's edge runs above it.
+// A run counts when it spans at least kMinOccluderShare of the width, holds
+// no miss below, and meets columns inside the gate (or the frame's edge) at
+// both ends. Runs hiding more than kMaxOccludedShare of the columns in all
+// count for nothing: what is seen is then mostly not the horizon.
+constexpr double kMinOccluderShare = 0.015, kMaxOccludedShare = 0.4, kMaxUnreadShare = 0.1;
+int OccludedRuns(const std::vector<Column>& cols, const std::vector<signed char>& side, int width) {
+  if (width <= 0 || cols.empty()) return 0;
+  const double gap = std::max(2.0, 4.0 * width / 1024.0);  // from the frame's edge
+  // Columns not read inside or beside a run (a chimney, a pole's top) do not end it.
+  const auto joined = [&](size_t a, size_t b) { return cols[b].x_px - cols[a].x_px <= kMaxUnreadShare * width; };
+  int hidden = 0;
+  for (size_t i = 0; i < cols.size();) {
+    if (side[i] != -1) {
+      ++i;
+      continue;
+    }
+    size_t j = i;
+    while (j + 1 < cols.size() && side[j + 1] == -1 && joined(j, j + 1)) ++j;
+    const bool left = i == 0 ? cols[i].x_px <= gap : (side[i - 1] == 0 && joined(i - 1, i)) || cols[i].x_px <= gap;
+    const bool right = j + 1 == cols.size() ? cols[j].x_px >= width - 1 - gap
+                                            : (side[j + 1] == 0 && joined(j, j + 1)) || cols[j].x_px >= width - 1 - gap;
+    const int n = static_cast<int>(j - i + 1);
+    if (left && right && n >= kMinOccluderShare * width) hidden += n;
+    i = j + 1;
+  }
+  return hidden <= kMaxOccludedShare * cols.size() ? hidden : 0;
+}
 }  // namespace
 
-FitStats ComputeFitStats(const Scorer& scorer, const Pose4& p, const std::vector<Column>& cols) {
+FitStats ComputeFitStats(const Scorer& scorer, const Pose4& p, const std::vector<Column>& cols, int width) {
   FitStats s;
+  std::vector<signed char> side(cols.size(), 0);  // 0 inside the gate, +1 a miss below, -1 above
   const Eigen::Matrix3d m = CamFromEnuRad(p.yaw, p.pitch, p.roll);
   const double sigma = scorer.sigma_px();
   double w_all = 0, w_in = 0, ss_raw = 0, ss_chi = 0, ss_expected = 0;
@@ -379,6 +411,7 @@ FitStats ComputeFitStats(const Scorer& scorer, const Pose4& p, const std::vector
     if (!(chi2 <= kGateChi2)) {
       ++outliers;  // a miss beyond even a wide tolerance refutes the pose, however little the column informs
       ++(r > 0.0 ? s.outliers_below : s.outliers_above);
+      side[&c - cols.data()] = r > 0.0 ? 1 : -1;
       continue;
     }
     w_in += info;
@@ -408,8 +441,12 @@ FitStats ComputeFitStats(const Scorer& scorer, const Pose4& p, const std::vector
     flattening.push_back(c.flattening_px);
     above.push_back(-r);
   }
-  // Inliers count by their information, outliers fully.
+  // Inliers count by their information, outliers fully (in the second share
+  // not those hidden by something in front).
   s.inlier_fraction = w_in + outliers > 0 ? w_in / (w_in + outliers) : 0.0;
+  s.occluded_columns = OccludedRuns(cols, side, width);
+  const int refuting = outliers - s.occluded_columns;
+  s.unhidden_inlier_fraction = w_in + refuting > 0 ? w_in / (w_in + refuting) : 0.0;
   s.informative_columns = w_all;
   if (w_in > 0) {
     s.rms_px = std::sqrt(ss_raw / w_in);

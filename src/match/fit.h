@@ -161,6 +161,10 @@ struct FitStats {
   // as sky: haze, snow, cloud in front of a ridge) or above it (sky read as
   // terrain, or something nearer than the DEM shows).
   int outliers_below = 0, outliers_above = 0;
+  // Of outliers_above, those in runs that rise out of the fitted skyline
+  // (hidden by something nearer), and the inlier share without them.
+  int occluded_columns = 0;
+  double unhidden_inlier_fraction = 0.0;
   double rms_px = NAN;           // raw residuals of the inliers
   // The inliers' chi^2 against what the model expects of them, as a pixel
   // RMS: sigma sqrt(sum chi^2 / sum E[chi^2]) (sigma for a pose whose
@@ -168,6 +172,6 @@ struct FitStats {
   double model_rms_px = NAN;
   DemLimits dem;
 };
-FitStats ComputeFitStats(const Scorer& scorer, const Pose4& p, const std::vector<Column>& cols);
+FitStats ComputeFitStats(const Scorer& scorer, const Pose4& p, const std::vector<Column>& cols, int width = 0);
 
 }  // namespace horizonreg::match_detail

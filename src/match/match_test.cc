@@ -408,6 +408,37 @@ TEST(Register, TheMissesAreCountedByTheirSideOfTheDemHorizon) {
   EXPECT_EQ(r.outliers_below + r.outliers_above, 0);
 }
 
+// A hut's gable in the foreground over 37% of the width, from the frame's
+// left edge, its chimney unread: the sky's edge runs 20-77 px above the
+// horizon it hides. Those misses rise out of the fitted skyline and do not
+// count against the pose, which registers. A raise the same size that
+// meets misses below instead of the fitted skyline (a wrong shape, not a
+// thing in front) still counts.
+TEST(Register, AThingInFrontHidesTheHorizonWithoutRefutingThePose) {
+  const HorizonProfile p = SyntheticHorizon(0.25);
+  const CameraPose pose{200.0, 0.8, 1.2};
+  const auto k = CameraIntrinsics::FromHfov(1024, 683, 45.0);
+  const Skyline clear = SkylineOf(p, pose, k);
+  Skyline s = clear;
+  double top = INFINITY;
+  for (int c = 0; c < 380; ++c) top = std::min(top, s.y[c]);
+  for (int c = 0; c < 380; ++c) s.y[c] = top - 20.0 - 0.3 * (190.0 - std::abs(c - 190.0));
+  for (int c = 250; c < 270; ++c) s.y[c] = NAN;
+  const Registration r = Register(s, p, {});
+  ASSERT_TRUE(r.registered) << r.message;
+  EXPECT_NEAR(AngDiffDeg(r.pose.azimuth_deg, pose.azimuth_deg), 0.0, 0.03);
+  EXPECT_NEAR(r.pose.pitch_deg, pose.pitch_deg, 0.03);
+  EXPECT_GT(r.hidden_columns, 300);
+  EXPECT_LT(r.inlier_fraction, RegistrationOptions{}.min_inlier_fraction);
+  EXPECT_GT(r.unhidden_inlier_fraction, 0.95);
+  // The same raise with the skyline beside it read 40 px too low (terrain
+  // taken for sky): no run rises out of the fitted skyline, nothing is hidden.
+  for (int c = 380; c < 460; ++c) s.y[c] += 40.0;
+  const Registration w = Register(s, p, {});
+  EXPECT_FALSE(w.registered) << w.message;
+  EXPECT_EQ(w.hidden_columns, 0);
+}
+
 // The hypotheses and candidates are shared out among threads; any count
 // gives the same answer, to the bit.
 TEST(Register, SameResultForAnyThreadCount) {

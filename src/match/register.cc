@@ -91,6 +91,8 @@ void RegistrationOptions::Check() const {
     ThrowField("RegistrationOptions::min_visible_fraction", min_visible_fraction, "0 <= f <= 1");
   if (!(min_inlier_fraction >= 0.0 && min_inlier_fraction <= 1.0))
     ThrowField("RegistrationOptions::min_inlier_fraction", min_inlier_fraction, "0 <= f <= 1");
+  if (!(min_unhidden_inlier_fraction >= 0.0 && min_unhidden_inlier_fraction <= 1.0))
+    ThrowField("RegistrationOptions::min_unhidden_inlier_fraction", min_unhidden_inlier_fraction, "0 <= f <= 1");
   if (!(max_rms_px > 0.0)) ThrowField("RegistrationOptions::max_rms_px", max_rms_px, "max_rms_px > 0");
   if (!(min_misfit_ratio >= 0.0 && min_misfit_ratio <= 1.0))
     ThrowField("RegistrationOptions::min_misfit_ratio", min_misfit_ratio, "0 <= min_misfit_ratio <= 1");
@@ -406,7 +408,7 @@ void FinishRegistration(const Scorer& scorer, const ImageFrame& frame, std::vect
   }
   const Pose4 bp = fr.pose;
   scorer.Reweight(bp, all);
-  const match_detail::FitStats stats = match_detail::ComputeFitStats(scorer, bp, all);
+  const match_detail::FitStats stats = match_detail::ComputeFitStats(scorer, bp, all, width);
   out.pose = bp.ToPose();
   out.focal_px = bp.f;
   out.hfov_deg = HfovFromFocalDeg(bp.f, width);
@@ -419,6 +421,8 @@ void FinishRegistration(const Scorer& scorer, const ImageFrame& frame, std::vect
   out.independent_inliers = stats.independent_inliers;
   out.outliers_below = stats.outliers_below;
   out.outliers_above = stats.outliers_above;
+  out.hidden_columns = stats.occluded_columns;
+  out.unhidden_inlier_fraction = stats.unhidden_inlier_fraction;
   out.rms_px = stats.rms_px;
   out.model_rms_px = stats.model_rms_px;
   const double scale = out.dem.flattening_scale;
@@ -441,7 +445,7 @@ void FinishRegistration(const Scorer& scorer, const ImageFrame& frame, std::vect
   if (!options.TellsThePose(stats.informative_columns, width))
     why << "the horizon seen is too near or the DEM too coarse to tell the pose (informative columns "
         << std::lround(100.0 * stats.informative_columns / width) << "% of the width)";
-  else if (out.inlier_fraction < options.min_inlier_fraction)
+  else if (!options.FitsEnough(out.inlier_fraction, out.unhidden_inlier_fraction))
     why << "only " << std::lround(100 * out.inlier_fraction) << "% of the skyline fits the DEM horizon"
         << MissesSide(stats.outliers_below, stats.outliers_above);
   else if (!(stats.model_rms_px <= options.max_rms_px * px_scale))

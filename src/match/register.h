@@ -99,6 +99,13 @@ struct RegistrationOptions {
   double min_informative_fraction = 0.3;   // of the width: columns whose tolerance lets them inform (near terrain
                                            // and a coarse DEM count little, Registration::informative_columns)
   double min_inlier_fraction = 0.65;       // of the informative columns inside the gate at the refined pose
+  // Or this share with the misses hidden by something in front left out
+  // (Registration::hidden_columns): a pose that explains part of the
+  // skyline away must fit the rest more closely.
+  double min_unhidden_inlier_fraction = 0.8;
+  bool FitsEnough(double inlier_fraction, double unhidden_inlier_fraction) const {
+    return inlier_fraction >= min_inlier_fraction || unhidden_inlier_fraction >= min_unhidden_inlier_fraction;
+  }
   double max_rms_px = 1.4;                 // RMS of the inliers' residuals beyond the DEM model (per 1000 px of width)
   double min_ambiguity_ratio = 1.4;        // the best other solution's cost over the best's
   // The least misfit of a distinct alternative over the best's, below which
@@ -229,6 +236,12 @@ struct Registration {
   double informative_columns = 0.0;  // columns whose tolerance lets them inform (near terrain counts little)
   double independent_inliers = 0.0;  // independent DEM samples behind the inliers (FitStats)
   int outliers_below = 0, outliers_above = 0;  // outlier columns: the skyline below / above the DEM horizon
+  // Of outliers_above, the columns in runs that rise out of the fitted
+  // skyline (hidden by something nearer than the DEM shows: a tree, a roof,
+  // a cap cloud), and the inlier share with them left out
+  // (RegistrationOptions::FitsEnough).
+  int hidden_columns = 0;
+  double unhidden_inlier_fraction = 0.0;
   // independent_inliers * (second_cost - cost) / 2 (second_cost = 9, all
   // outliers, when nothing else was searched): nats in favour of the pose.
   double evidence_nats = 0.0;

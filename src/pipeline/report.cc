@@ -99,6 +99,8 @@ nlohmann::json RegistrationReport(const Site& site, const PhotoRegistration& pho
                    {"independent_inliers", Rounded(r.independent_inliers, 1)},
                    {"outliers_below", r.outliers_below},
                    {"outliers_above", r.outliers_above},
+                   {"outliers_hidden", r.hidden_columns},
+                   {"unhidden_inlier_fraction", Rounded(r.unhidden_inlier_fraction, 3)},
                    {"nats", Rounded(r.evidence_nats, 1)}};
   j["hypotheses"] = r.hypotheses;
   if (r.scanned_hypotheses > 0) j["scanned_hypotheses"] = r.scanned_hypotheses;
