@@ -437,6 +437,12 @@ TEST(Register, AThingInFrontHidesTheHorizonWithoutRefutingThePose) {
   const Registration w = Register(s, p, {});
   EXPECT_FALSE(w.registered) << w.message;
   EXPECT_EQ(w.hidden_columns, 0);
+  // Hidden, but too little of the rest fits: refused, and the message says so.
+  for (int c = 380; c < 460; ++c) s.y[c] -= 40.0;
+  for (int c = 600; c < 760; ++c) s.y[c] += 40.0;
+  const Registration h = Register(s, p, {});
+  EXPECT_FALSE(h.registered) << h.message;
+  EXPECT_NE(h.message.find("hidden by something in front"), std::string::npos) << h.message;
 }
 
 // The hypotheses and candidates are shared out among threads; any count

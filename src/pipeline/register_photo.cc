@@ -202,7 +202,8 @@ constexpr int kRidgeRounds = 4;
 // reads its rival fails (ambiguity, misfit ratio, evidence).
 bool RefusedForARival(const Registration& r, const RegistrationOptions& o, int width) {
   if (r.registered || !(r.focal_px > 0.0) || !r.rival || !o.TellsThePose(r.informative_columns, width) ||
-      !o.FitsEnough(r.inlier_fraction, r.unhidden_inlier_fraction) || !(r.model_rms_px <= o.max_rms_px * ToleranceScale(width)))
+      !o.FitsEnough(r.inlier_fraction, r.unhidden_inlier_fraction) ||
+      !(r.model_rms_px <= o.max_rms_px * ToleranceScale(width)))
     return false;
   return r.ambiguity_ratio < o.min_ambiguity_ratio || r.second_misfit < o.min_misfit_ratio * r.misfit ||
          r.evidence_nats < o.min_evidence_nats;
