@@ -444,8 +444,8 @@ FitStats ComputeFitStats(const Scorer& scorer, const Pose4& p, const std::vector
   // Inliers count by their information, outliers fully (in the second share
   // not those hidden by something in front).
   s.inlier_fraction = w_in + outliers > 0 ? w_in / (w_in + outliers) : 0.0;
-  s.occluded_columns = OccludedRuns(cols, side, width);
-  const int refuting = outliers - s.occluded_columns;
+  s.hidden_columns = OccludedRuns(cols, side, width);
+  const int refuting = outliers - s.hidden_columns;
   s.unhidden_inlier_fraction = w_in + refuting > 0 ? w_in / (w_in + refuting) : 0.0;
   s.informative_columns = w_all;
   if (w_in > 0) {

@@ -163,7 +163,7 @@ struct FitStats {
   int outliers_below = 0, outliers_above = 0;
   // Of outliers_above, those in runs that rise out of the fitted skyline
   // (hidden by something nearer), and the inlier share without them.
-  int occluded_columns = 0;
+  int hidden_columns = 0;
   double unhidden_inlier_fraction = 0.0;
   double rms_px = NAN;           // raw residuals of the inliers
   // The inliers' chi^2 against what the model expects of them, as a pixel

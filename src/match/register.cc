@@ -160,9 +160,6 @@ bool WithinPrior(const RegistrationOptions& o, const CameraPose& pose) {
 
 namespace {
 
-// Which side of the DEM horizon most of the best pose's misses lie on, for
-// the no-match message: what the user can look for in the photo (a wrong
-// pose's misses fall either side).
 // The columns hidden by something in front, when there are any, and how
 // much of the rest fits against the share that would have passed.
 std::string HiddenShare(int hidden, double unhidden_fraction, const RegistrationOptions& o) {
@@ -174,6 +171,9 @@ std::string HiddenShare(int hidden, double unhidden_fraction, const Registration
   return m.str();
 }
 
+// Which side of the DEM horizon most of the best pose's misses lie on, for
+// the no-match message: what the user can look for in the photo (a wrong
+// pose's misses fall either side).
 std::string MissesSide(int below, int above) {
   std::ostringstream m;
   if (below >= 3 * std::max(1, above))
@@ -432,7 +432,7 @@ void FinishRegistration(const Scorer& scorer, const ImageFrame& frame, std::vect
   out.independent_inliers = stats.independent_inliers;
   out.outliers_below = stats.outliers_below;
   out.outliers_above = stats.outliers_above;
-  out.hidden_columns = stats.occluded_columns;
+  out.hidden_columns = stats.hidden_columns;
   out.unhidden_inlier_fraction = stats.unhidden_inlier_fraction;
   out.rms_px = stats.rms_px;
   out.model_rms_px = stats.model_rms_px;
@@ -458,7 +458,7 @@ void FinishRegistration(const Scorer& scorer, const ImageFrame& frame, std::vect
         << std::lround(100.0 * stats.informative_columns / width) << "% of the width)";
   else if (!options.FitsEnough(out.inlier_fraction, out.unhidden_inlier_fraction))
     why << "only " << std::lround(100 * out.inlier_fraction) << "% of the skyline fits the DEM horizon"
-        << HiddenShare(stats.occluded_columns, out.unhidden_inlier_fraction, options)
+        << HiddenShare(stats.hidden_columns, out.unhidden_inlier_fraction, options)
         << MissesSide(stats.outliers_below, stats.outliers_above);
   else if (!(stats.model_rms_px <= options.max_rms_px * px_scale))
     why << "residual " << stats.model_rms_px << " px too large";
