@@ -111,6 +111,18 @@ Modes (each a per-photo table and a summary):
             The truth is the ray through the crop's centre by the author's
             full camera model. Counts the photos within 0.5 deg (--floors
             crop=N) and the false ones (0)
+  tilted    (not in the default set; seconds) plain on each photo turned by
+            +6 and by -6 deg about its centre (a camera held askew) and cut
+            to the largest centred frame of its shape inside the turned one
+            (PNG, no EXIF: --hfov from the truth, the cut frame's opening
+            angle). Rows, cliffs and ridges then leave the frame through its
+            top corner and the frame's top edge cuts them. The truth: the ray
+            through the cut frame's centre by the author's camera model, the
+            roll turned by the angle. Counts the copies within 0.5 deg
+            (--floors tilted=N, of 26) and the false ones (0)
+  wrong-tilted, ring-tilted  (not in the default set) the wrong probes and
+            the ring's 468 on those copies (+6 deg for every other photo,
+            -6 for the rest; --floors ring-tilted=N, a ceiling, default 0)
   stations  (not in the default set; seconds) `batch` over every photo, its
             JPEG quality 95 copy and its pixels alone (PNG, no EXIF), the
             photos of a station (one position) in one run, with and without
@@ -552,6 +564,39 @@ def cropped_copy(cv2, truth, source, path, where, share):
     t = dict(truth)
     t["yaw_deg"], t["pitch_deg"] = ray_through(cv2, truth, x0 + kept / 2.0, h / 2.0)
     t["hfov_deg"] = math.degrees(2.0 * math.atan(kept / (2.0 * truth["camera"]["fx_px"])))
+    return t
+
+
+TILT_DEG = 6.0  # the tilted modes' turn, both ways
+
+
+def tilted_copy(cv2, truth, source, path, angle_deg):
+    """The photo turned by `angle_deg` about its centre (anticlockwise
+    positive: the camera's right side down, its roll grows by the angle) and
+    cut to the largest centred frame of its shape inside the turned one,
+    written as PNG (no EXIF), and the truth of the copy: the ray through its
+    centre, its roll and opening angle, its size. None when it cannot be
+    written."""
+    import numpy as np
+    image = cv2.imread(source)
+    h, w = image.shape[:2]
+    th = math.radians(abs(angle_deg))
+    scale = min(1.0, 1.0 / (math.cos(th) + (w / h) * math.sin(th)), 1.0 / (math.cos(th) + (h / w) * math.sin(th)))
+    cw, ch = int(w * scale) // 2 * 2, int(h * scale) // 2 * 2
+    x0, y0 = (w - cw) // 2, (h - ch) // 2
+    m = cv2.getRotationMatrix2D((w / 2.0, h / 2.0), angle_deg, 1.0)
+    turned = cv2.warpAffine(image, m, (w, h), flags=cv2.INTER_LINEAR)
+    if not cv2.imwrite(path, turned[y0:y0 + ch, x0:x0 + cw]):
+        return None
+    # The cut frame's centre, back in the photo's pixels.
+    inverse = cv2.invertAffineTransform(m)
+    u, v = inverse @ np.array([x0 + cw / 2.0, y0 + ch / 2.0, 1.0])
+    t = dict(truth)
+    t["yaw_deg"], t["pitch_deg"] = ray_through(cv2, truth, float(u), float(v))
+    t["roll_deg"] = truth["roll_deg"] + angle_deg
+    t["hfov_deg"] = math.degrees(2.0 * math.atan(cw / (2.0 * truth["camera"]["fx_px"])))
+    t["width"], t["height"] = cw, ch
+    t["skyline_row"] = [None] * cw
     return t
 
 
@@ -1177,7 +1222,7 @@ def main():
     floors = {"plain": 12, "camera": 12, "initial": 13, "skyline": 0.9, "thin": 0.9, "skyline-given": 0.95,
               "registered-skyline": 0.9, "registered-skyline-given": 0.95,
               "thin-given": 0.95, "ring": 0, "ring-camera": 0, "ring-initial": 0, "ring-sensors": 0, "ring-noexif": 0, "ring-hfov": 0, "ring-range": 0, "ring-noalt": 0, "ring-noalt-hfov": 0, "hfov": 12,
-              "sensors": 0, "noexif": 0, "reencode": 0, "gray": 0, "upscale2": 0, "upscale4": 0, "downscale2": 0, "jpeg50": 0, "jpeg30": 0, "crop": 0, "crop-narrow": 0, "ring-crop": 0, "ring-crop-narrow": 0, "stations": 0, "turned": 0, "banner": 0, "cloud": 0, "cloud-small": 0, "sky-cloud": 0, "occluder": 0, "cables": 0, "contrails": 0, "sun": 0, "roof": 0, "gray-skyline": 0.0, "stability": 1.0,
+              "sensors": 0, "noexif": 0, "reencode": 0, "gray": 0, "upscale2": 0, "upscale4": 0, "downscale2": 0, "jpeg50": 0, "jpeg30": 0, "crop": 0, "crop-narrow": 0, "ring-crop": 0, "ring-crop-narrow": 0, "tilted": 0, "ring-tilted": 0, "stations": 0, "turned": 0, "banner": 0, "cloud": 0, "cloud-small": 0, "sky-cloud": 0, "occluder": 0, "cables": 0, "contrails": 0, "sun": 0, "roof": 0, "gray-skyline": 0.0, "stability": 1.0,
               "jpeg30-skyline": 0.0, "photometric": 0, "photometric-skyline": 0.0, "thin-framed": 0.0,
               "thin-framed-given": 0.0}
     for kv in (opt("--floors") or "").split(","):
@@ -1407,6 +1452,47 @@ def main():
                 binary, shared, photos, {name: c[0] for name, c in crops.items()},
                 {name: c[1] for name, c in crops.items()}, jobs, tmpdir, ", " + what, floors["ring-" + mode], check, mode):
             failed = True
+    # Tilted copies (a camera held askew), their truth, the wrong probes on them.
+    if {"tilted", "wrong-tilted", "ring-tilted"} & set(modes):
+        cv2 = opencv_for("tilted")
+        tilted = {}
+        for i, (name, t, d) in enumerate(photos if cv2 else []):
+            for angle in (TILT_DEG, -TILT_DEG):
+                path = os.path.join(tmpdir, f"{name}.tilt{angle:+.0f}.png")
+                tilted[(name, angle)] = (path, tilted_copy(cv2, t, os.path.join(d, t["image"]), path, angle))
+        if cv2 is None or not all(ct for _, ct in tilted.values()):
+            print("FAIL: cannot write the tilted copies")
+            failed = True
+        else:
+            def hfov_of(ct):
+                return ["--hfov", f"{ct['hfov_deg']:.3f}"]
+            if "tilted" in modes:
+                def tilted_of(key):
+                    path, ct = tilted[key]
+                    p = next(p for p in photos if p[0] == key[0])
+                    return f"{key[0][:20]} {key[1]:+.0f}", ct, register(binary, shared, p[2], key[0], ct, hfov_of(ct),
+                                                                         image=path)
+                good, false, _, _ = pose_table(
+                    f"no prior, turned by +-{TILT_DEG:.0f} deg and cut (PNG, --hfov of the cut frame)",
+                    list(pool.map(tilted_of, list(tilted))), 0.5)
+                if check and (good < floors["tilted"] or false):
+                    print("FAIL: --modes tilted misses its floor or has a false registration")
+                    failed = True
+            # One copy per photo for the probes: +6 deg for every other photo, -6 for the rest.
+            one = {name: tilted[(name, TILT_DEG if i % 2 == 0 else -TILT_DEG)] for i, (name, _, _) in enumerate(photos)}
+            if "wrong-tilted" in modes:
+                probes = false_probe_list(photos, shared)
+                out = probe_rows(binary, shared, probes, [
+                    probe_call(pr, extra=hfov_of(one[pr[0][0]][1]), image=one[pr[0][0]][0], truth=one[pr[0][0]][1])
+                    for pr in probes], jobs, tmpdir)
+                if not report_wrong("wrong position (2-10 km away) or another region's DEM, turned and cut", out) \
+                        and check:
+                    failed = True
+            if "ring-tilted" in modes and not ring_of_wrong_positions(
+                    binary, shared, photos, {name: c[0] for name, c in one.items()},
+                    {name: c[1] for name, c in one.items()}, jobs, tmpdir, ", turned and cut",
+                    floors["ring-tilted"], check, "tilted", extra_of=lambda i, name, t: hfov_of(one[name][1])):
+                failed = True
     # The hand-traced horizon (the matching alone), with k1 fitted and
     # without; a false registration fails the check with k1 only.
     for mode, extra, title in (("traced", [], "--skyline: the hand-traced horizon (matching alone)"),

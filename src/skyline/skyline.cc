@@ -124,7 +124,7 @@ void Halve(const LabPlanes& lab, LabPlanes& out) {
 
 // Pass 1: sky likeness relative to the image's top band (assumed sky).
 // Planes transposed (one row per image column).
-HR_VECTOR_CLONES void SkyScoreFromTopBand(const LabPlanes& lab, float deep_blue_b, cv::Mat& s) {
+HR_VECTOR_CLONES float SkyScoreFromTopBand(const LabPlanes& lab, float deep_blue_b, cv::Mat& s) {
   const int w = lab.Rows(), h = lab.Cols();
   const int band = std::max(2, h / 30);
   std::vector<float> ls;
@@ -182,6 +182,7 @@ HR_VECTOR_CLONES void SkyScoreFromTopBand(const LabPlanes& lab, float deep_blue_
       out[r] = std::max(1.0f - dark, deep_blue[r] * NotTooDark(l[r], ref_at[r], ref_b_at[r])) * not_warm[r];
     }
   }
+  return lm;
 }
 
 // Clouds floating in the sky (FindFloatingClouds), per work column: the
@@ -441,12 +442,65 @@ std::vector<int> TraceBack(const std::vector<float>& acc, const std::vector<floa
   return out;
 }
 
+// The frame's top edge as a boundary: where a column's top rows are
+// terrain (a slope or a ridge that leaves the frame upwards, as a camera
+// held askew or pitched down frames it), the sky lies above the frame and
+// the top edge is the step from it. Without a reward there, the slope's
+// foot on brighter snow or ice earned the step's and was taken for the
+// skyline, and the slope was learnt as sky (a copy of AK10_20090803 turned
+// by 6 deg: 224 columns read 10-40 px under a slope that fills the frame's
+// top left corner). The reward is the top rows' drop in lightness below
+// the sky's (`sky_l`, the top band's median), capped as a step is, times
+// how little they look like sky (`sky_t`'s first two rows), times how much
+// rougher they are than the tops of the columns that look like sky (the
+// median of those, each column's roughness its mean absolute Laplacian
+// over its top rows, 5 columns averaged): rock and forest are textured, a
+// sky darkened towards a corner (a lens's vignetting, the deep blue of a
+// polarised zenith) is as smooth as the rest of the sky (measured on the
+// turned copies: the slope 1.5-7 times the sky's roughness, CG05_20050827's
+// dark blue corner 0.6-1.6).
+void TopEdgeReward(const LabPlanes& lab, const cv::Mat& sky_t, float sky_l, std::vector<float>& out) {
+  const int w = lab.Rows(), h = lab.Cols();
+  out.assign(w, 0.0f);
+  if (h < 4 || w < 3) return;
+  const int rows = std::min(h - 1, std::max(3, h / 40));
+  std::vector<float> tex(w, 0.0f), sky_tex;
+  for (int c = 1; c + 1 < w; ++c) {
+    const float* l = lab.l.ptr<float>(c);
+    const float* lp = lab.l.ptr<float>(c - 1);
+    const float* ln = lab.l.ptr<float>(c + 1);
+    float sum = 0;
+    for (int r = 1; r < rows; ++r) sum += std::abs(l[r] - 0.25f * (l[r - 1] + l[r + 1] + lp[r] + ln[r]));
+    tex[c] = sum / (rows - 1);
+    const float* s = sky_t.ptr<float>(c);
+    if (0.5f * (s[0] + s[1]) > 0.5f) sky_tex.push_back(tex[c]);
+  }
+  tex[0] = tex[1], tex[w - 1] = tex[w - 2];
+  std::vector<float> smooth(w);
+  for (int c = 0; c < w; ++c) {
+    const int a = std::max(0, c - 2), b = std::min(w - 1, c + 2);
+    float sum = 0;
+    for (int k = a; k <= b; ++k) sum += tex[k];
+    smooth[c] = sum / (b - a + 1);
+  }
+  if (sky_tex.size() < 3) return;
+  std::nth_element(sky_tex.begin(), sky_tex.begin() + sky_tex.size() / 2, sky_tex.end());
+  const float ref = std::max(sky_tex[sky_tex.size() / 2], 0.05f);
+  for (int c = 0; c < w; ++c) {
+    const float* l = lab.l.ptr<float>(c);
+    const float* s = sky_t.ptr<float>(c);
+    const float drop = sky_l - 0.5f * (l[0] + l[1]);
+    const float textured = Logistic((smooth[c] / ref - 2.0f) * 3.0f);
+    out[c] = std::clamp(drop, 0.0f, kEdgeCap) * (1.0f - 0.5f * (s[0] + s[1])) * textured;
+  }
+}
+
 // Globally best boundary (one y in [0, h] per column): misclassified pixels
 // (sky below or non-sky above) minus the colour step at the boundary, plus
 // `smoothness` per pixel of jump, around the slope expected from the roll.
 std::vector<int> SolveBoundary(const cv::Mat& sky_t, const cv::Mat& steps_t, const EdgePenalty& penalty,
                                double smoothness, double edge_weight, double slope_px_per_col,
-                               std::vector<float>& acc) {
+                               std::vector<float>& acc, const std::vector<float>* top_reward = nullptr) {
   const int w = sky_t.rows, h = sky_t.cols, n = h + 1;
   std::vector<float> data(n), forward(n), ramp(n), pen(n + 1), pen_extra(n + 1), zeros(n, 0.0f), column_min(w);
   const float beta = static_cast<float>(smoothness), lambda = static_cast<float>(edge_weight);
@@ -483,6 +537,7 @@ std::vector<int> SolveBoundary(const cv::Mat& sky_t, const cv::Mat& steps_t, con
       const float snow = pen_extra[top] - pen_extra[after_blue];
       const float misclassified = static_cast<float>(y) - 2.0f * sky_above;
       data[y] = kColourWeight * misclassified + kEdgeAboveWeight * (pen[top] + snow) - lambda * e[y];
+      if (y == 0 && top_reward) data[0] -= lambda * (*top_reward)[c];
       run = std::min(run, prev_at(y) - ramp[y]);
       forward[y] = run + ramp[y];
       if (y == h) break;
@@ -1022,7 +1077,7 @@ struct Workspace {
   std::vector<uint8_t> line_runs;
   LabPlanes lab, lab_h;  // transposed
   EdgePenalty pen, pen_h;
-  std::vector<float> acc, sample;
+  std::vector<float> acc, sample, top_reward;
   RefineStrips refine;
 };
 
@@ -1356,13 +1411,15 @@ Skyline ExtractSceneSkyline(const cv::Mat& image, const SkylineOptions& options,
   // Pass 1 only gives the first boundary that pass 2 learns the colours of
   // sky and ground from: at half the work size (a quarter of the time).
   std::vector<int> boundary(ww);
+  float top_sky_l = 0.0f;  // the top band's median lightness
   {
     Halve(work_t, ws.lab_h);
     BoundarySteps(ws.lab_h, deep_blue_b, ws.steps_h);
-    SkyScoreFromTopBand(ws.lab_h, deep_blue_b, ws.sky_h);
+    top_sky_l = SkyScoreFromTopBand(ws.lab_h, deep_blue_b, ws.sky_h);
     EdgeAbovePenalty(ws.steps_h, ws.sky_h, ws.lab_h, ws.pen_h);
-    const std::vector<int> half =
-        SolveBoundary(ws.sky_h, ws.steps_h, ws.pen_h, options.smoothness, options.edge_weight, slope, ws.acc);
+    TopEdgeReward(ws.lab_h, ws.sky_h, top_sky_l, ws.top_reward);
+    const std::vector<int> half = SolveBoundary(ws.sky_h, ws.steps_h, ws.pen_h, options.smoothness,
+                                                options.edge_weight, slope, ws.acc, &ws.top_reward);
     for (int c = 0; c < ww; ++c)
       boundary[c] = std::min(wh, 2 * half[std::min(c / 2, static_cast<int>(half.size()) - 1)]);
   }
@@ -1429,7 +1486,9 @@ Skyline ExtractSceneSkyline(const cv::Mat& image, const SkylineOptions& options,
     for (int r = 0; r <= clouds.sky_bottom[c]; ++r) sky_c[r] = 1.0f;
   }
   EdgeAbovePenalty(ws.steps, ws.sky, work_t, ws.pen);
-  boundary = SolveBoundary(ws.sky, ws.steps, ws.pen, options.smoothness, options.edge_weight, slope, ws.acc);
+  TopEdgeReward(work_t, ws.sky, top_sky_l, ws.top_reward);
+  boundary =
+      SolveBoundary(ws.sky, ws.steps, ws.pen, options.smoothness, options.edge_weight, slope, ws.acc, &ws.top_reward);
   // The sky model again, above the boundary found: what RaiseToSkyModelDeparture reads.
   {
     for (int c = 0; c < ww; ++c) fit_top[c] = std::min(boundary[c], clouds.top[c]) - 3;  // not over a cloud
