@@ -1467,11 +1467,12 @@ def main():
             def hfov_of(ct):
                 return ["--hfov", f"{ct['hfov_deg']:.3f}"]
             if "tilted" in modes:
+                photo_dir = {name: d for name, _, d in photos}
+
                 def tilted_of(key):
                     path, ct = tilted[key]
-                    p = next(p for p in photos if p[0] == key[0])
-                    return f"{key[0][:20]} {key[1]:+.0f}", ct, register(binary, shared, p[2], key[0], ct, hfov_of(ct),
-                                                                         image=path)
+                    return f"{key[0][:20]} {key[1]:+.0f}", ct, register(binary, shared, photo_dir[key[0]], key[0], ct,
+                                                                         hfov_of(ct), image=path)
                 good, false, _, _ = pose_table(
                     f"no prior, turned by +-{TILT_DEG:.0f} deg and cut (PNG, --hfov of the cut frame)",
                     list(pool.map(tilted_of, list(tilted))), 0.5)

@@ -464,7 +464,8 @@ void TopEdgeReward(const LabPlanes& lab, const cv::Mat& sky_t, float sky_l, std:
   out.assign(w, 0.0f);
   if (h < 4 || w < 3) return;
   const int rows = std::min(h - 1, std::max(3, h / 40));
-  std::vector<float> tex(w, 0.0f), sky_tex;
+  std::vector<float> top_sky(w), tex(w, 0.0f), sky_tex;  // the top rows' sky likeness and roughness
+  for (int c = 0; c < w; ++c) top_sky[c] = 0.5f * (sky_t.ptr<float>(c)[0] + sky_t.ptr<float>(c)[1]);
   for (int c = 1; c + 1 < w; ++c) {
     const float* l = lab.l.ptr<float>(c);
     const float* lp = lab.l.ptr<float>(c - 1);
@@ -472,8 +473,7 @@ void TopEdgeReward(const LabPlanes& lab, const cv::Mat& sky_t, float sky_l, std:
     float sum = 0;
     for (int r = 1; r < rows; ++r) sum += std::abs(l[r] - 0.25f * (l[r - 1] + l[r + 1] + lp[r] + ln[r]));
     tex[c] = sum / (rows - 1);
-    const float* s = sky_t.ptr<float>(c);
-    if (0.5f * (s[0] + s[1]) > 0.5f) sky_tex.push_back(tex[c]);
+    if (top_sky[c] > 0.5f) sky_tex.push_back(tex[c]);
   }
   tex[0] = tex[1], tex[w - 1] = tex[w - 2];
   std::vector<float> smooth(w);
@@ -488,10 +488,9 @@ void TopEdgeReward(const LabPlanes& lab, const cv::Mat& sky_t, float sky_l, std:
   const float ref = std::max(sky_tex[sky_tex.size() / 2], 0.05f);
   for (int c = 0; c < w; ++c) {
     const float* l = lab.l.ptr<float>(c);
-    const float* s = sky_t.ptr<float>(c);
     const float drop = sky_l - 0.5f * (l[0] + l[1]);
     const float textured = Logistic((smooth[c] / ref - 2.0f) * 3.0f);
-    out[c] = std::clamp(drop, 0.0f, kEdgeCap) * (1.0f - 0.5f * (s[0] + s[1])) * textured;
+    out[c] = std::clamp(drop, 0.0f, kEdgeCap) * (1.0f - top_sky[c]) * textured;
   }
 }
 
