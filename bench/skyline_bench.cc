@@ -11,6 +11,7 @@
 
 #include "skyline/refine.h"
 #include "skyline/skyline.h"
+#include "skyline/vignetting.h"
 #include "testing/pixel_noise.h"
 #include "testing/shared_data.h"
 
@@ -41,6 +42,16 @@ void BM_NoiseSigma(benchmark::State& state) {
   for (auto _ : state) benchmark::DoNotOptimize(skyline_detail::NoiseSigma(img));
 }
 BENCHMARK(BM_NoiseSigma)->Args({1024, 683})->Unit(benchmark::kMillisecond);
+
+// ... and the lens's fall-off every photo is read for (EstimateVignetting),
+// at 1024 x 683 and 4000 x 3000.
+void BM_EstimateVignetting(benchmark::State& state) {
+  cv::setNumThreads(1);
+  const cv::Mat img = LoadScene(static_cast<int>(state.range(0)), static_cast<int>(state.range(1)));
+  if (img.empty()) return state.SkipWithError("../shared is absent");
+  for (auto _ : state) benchmark::DoNotOptimize(EstimateVignetting(img));
+}
+BENCHMARK(BM_EstimateVignetting)->Args({1024, 683})->Args({4000, 3000})->Unit(benchmark::kMillisecond);
 
 // ... and the whole extraction of a noisy frame (sigma 6 per channel), which
 // is smoothed first.

@@ -1099,6 +1099,17 @@ PHOTOMETRIC = [
 ]
 
 
+def lens_bend(r):
+    """A registration's fitted k1 and how far it moves the frame's side
+    edges, in percent of the half-width (k1 (W / 2f)^2; positive:
+    pincushion)."""
+    cam = r.get("camera") or {}
+    k, f, w = (cam.get("k") or [None])[0], cam.get("focal_px"), r.get("width")
+    if k is None or not f or not w:
+        return "k1 -"
+    return f"k1 {k:+.3f} ({100 * k * (w / (2 * f)) ** 2:+.1f}%)"
+
+
 def ring_of_wrong_positions(binary, shared, photos, images, truths, jobs, tmpdir, what, ceiling, check, mode,
                    extra_of=None, alt=True):
     """The ring's 468 wrong positions (RING_OFFSETS) on the photos or copies
@@ -1116,7 +1127,8 @@ def ring_of_wrong_positions(binary, shared, photos, images, truths, jobs, tmpdir
              lat=lat, lon=lon, alt=alt, image=images[name] if images else None)
         for i, ((name, t, d), b, dist, lat, lon) in enumerate(probes)], jobs, tmpdir)
     print(f"\n== a ring of wrong positions: 12 bearings at 2, 3 and 5 km ({len(probes)} probes){what} ==")
-    print(f"{'photo':<24}{'registered':>11}{'false':>6}  false ones (bearing/km: error deg, ambiguity)")
+    print(f"{'photo':<24}{'registered':>11}{'false':>6}  false ones (bearing/km: error deg, ambiguity, "
+          "k1 and its bend at the frame's side edges)")
     n_reg = n_false = 0
     errs = []
     for name, t, _ in photos:
@@ -1131,7 +1143,7 @@ def ring_of_wrong_positions(binary, shared, photos, images, truths, jobs, tmpdir
             reg += 1
             err = pose_off_deg(errors(r, truth_of(name, t)))
             if err > FALSE_DEG:
-                false.append(f"{b}/{dist // 1000}: {err:.1f}, {r.get('ambiguity_ratio')}")
+                false.append(f"{b}/{dist // 1000}: {err:.1f}, {r.get('ambiguity_ratio')}, {lens_bend(r)}")
         n_reg, n_false = n_reg + reg, n_false + len(false)
         print(f"{name:<24}{reg:>11}{len(false):>6}  " + "; ".join(false))
     print(f"ring probes: {len(probes)}; registered: {n_reg} (none should); false (> 1 deg): {n_false}; "
