@@ -7,21 +7,22 @@
 #include <opencv2/core.hpp>
 #include <vector>
 
+#include "skyline/refine.h"
+
 namespace horizonreg {
 namespace {
 
-constexpr int kWorkSide = 256;  // the estimate reads a copy kWorkSide to 2 kWorkSide - 1 px across ...
-constexpr int kBlockRows = 4;   // ... each pixel the mean of up to this many rows of its block
-constexpr double kSmoothLogStep =
-    0.04;                              // a pixel is smooth under this change of ln(light) per work px (256 across) ...
-constexpr double kMinLinear = 0.005;   // ... and counts where its light is above this (not black) ...
-constexpr double kMaxLinear = 0.97;    // ... and no channel is clipped
-constexpr double kCentreBand = 0.1;    // share of the width each side of the centre left out (the sign is unsure)
-constexpr int kMinSamples = 500;       // fewer smooth pixels than this: no estimate
-constexpr int kRounds = 8;             // rounds of the robust fit ...
-constexpr double kHuberSigmas = 2.5;   // ... whose weights fall beyond this many robust sigmas
-constexpr double kMaxGainStops = 3.0;  // Devignetted: the gain's cap
-constexpr int kGainTable = 1024;       // Devignetted: entries of the gain over r^2 in [0, 1]
+constexpr int kWorkSide = 256;           // the estimate reads a copy kWorkSide to 2 kWorkSide - 1 px across ...
+constexpr int kBlockRows = 4;            // ... each pixel the mean of up to this many rows of its block
+constexpr double kSmoothLogStep = 0.04;  // a pixel is smooth under this change of ln(light) per work px ...
+constexpr double kMinLinear = 0.005;     // ... and counts where its light is above this (not black) ...
+constexpr double kMaxLinear = 0.97;      // ... and no channel is clipped
+constexpr double kCentreBand = 0.1;      // share of the width each side of the centre left out (the sign is unsure)
+constexpr int kMinSamples = 500;         // fewer smooth pixels than this: no estimate
+constexpr int kRounds = 8;               // rounds of the robust fit ...
+constexpr double kHuberSigmas = 2.5;     // ... whose weights fall beyond this many robust sigmas
+constexpr double kMaxGainStops = 3.0;    // Devignetted: the gain's cap
+constexpr int kGainTable = 1024;         // Devignetted: entries of the gain over r^2 in [0, 1]
 
 // The photo reduced by a whole factor k (returned) to kWorkSide to
 // 2 kWorkSide - 1 px across, in linear light (sRGB read as gamma 2.2): ln
@@ -100,7 +101,7 @@ Vignetting EstimateVignetting(const cv::Mat& bgr) {
   }
   if (static_cast<int>(d.size()) < kMinSamples) return {};
   // Iteratively reweighted least squares (Huber's weights) of d on u and v.
-  std::vector<double> weight(d.size(), 1.0), residual(d.size());
+  std::vector<double> weight(d.size(), 1.0), residual(d.size()), sorted;
   Vignetting out;
   for (int round = 0; round < kRounds; ++round) {
     double suu = 0, suv = 0, svv = 0, sud = 0, svd = 0;
@@ -114,9 +115,8 @@ Vignetting EstimateVignetting(const cv::Mat& bgr) {
     out.a = (svv * sud - suv * svd) / det;
     out.b = (suu * svd - suv * sud) / det;
     for (size_t i = 0; i < d.size(); ++i) residual[i] = std::abs(d[i] - out.a * u[i] - out.b * v[i]);
-    std::vector<double> sorted = residual;
-    std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
-    const double scale = 1.4826 * sorted[sorted.size() / 2] + 1e-9;
+    sorted = residual;
+    const double scale = 1.4826 * skyline_detail::Quantile(sorted, 0.5) + 1e-9;
     for (size_t i = 0; i < d.size(); ++i) weight[i] = 1.0 / std::max(1.0, residual[i] / (kHuberSigmas * scale));
   }
   return out;
