@@ -64,6 +64,20 @@ void BM_SkylineNoisy(benchmark::State& state) {
 }
 BENCHMARK(BM_SkylineNoisy)->Args({1024, 683})->Unit(benchmark::kMillisecond);
 
+// ... and of a hazy real photo (AK01b_20100525, 724 x 486, its lightness
+// spanning about 56 of L*'s 100), whose rows are read a second time with
+// the least clear step judged over that span (LightnessStretch): the
+// extraction's steps after the refinement run twice.
+void BM_SkylineHazyReal(benchmark::State& state) {
+  cv::setNumThreads(1);
+  const auto shared = testing::SharedDir();
+  const cv::Mat img =
+      shared ? cv::imread((*shared / "real" / "columbia" / "AK01b_20100525_200710.jpg").string()) : cv::Mat();
+  if (img.empty()) return state.SkipWithError("../shared is absent");
+  for (auto _ : state) benchmark::DoNotOptimize(ExtractSkyline(img, SkylineOptions{}));
+}
+BENCHMARK(BM_SkylineHazyReal)->Unit(benchmark::kMillisecond);
+
 }  // namespace
 }  // namespace horizonreg
 

@@ -44,6 +44,11 @@ struct LabStrips {
     const float dl = l[i] - l[j], da = a[i] - a[j], db = b[i] - b[j];
     return dl * dl + da * da + db * db;
   }
+  // The same with the lightness difference times `gain`.
+  float DistanceSq(int i, int j, float gain) const {
+    const float dl = gain * (l[i] - l[j]), da = a[i] - a[j], db = b[i] - b[j];
+    return dl * dl + da * da + db * db;
+  }
 };
 
 // What the refinement reads: each column's strip (its own colours), and the
@@ -55,7 +60,7 @@ struct RefineStrips {
   int count = 0;
   std::vector<int> first;  // per column; kNoStrip where the boundary is outside the image
   LabStrips column, wide;
-  std::vector<float> steps;  // RefineColumn's scratch
+  std::vector<float> steps, clear;  // RefineColumn's scratch
   std::vector<int> rows;
   static constexpr int kNoStrip = std::numeric_limits<int>::min();
 };
@@ -100,8 +105,11 @@ void GatherStrips(const cv::Mat& bgr, RefineStrips& strips);
 // Sub-pixel boundary of full-size column x (h rows) within `window` rows of
 // row `centre`: where the colour crosses half way from the local sky colour
 // to the local ground colour. The strip holds rows centre - window - 5 to
-// centre + window + 4.
-ColumnFit RefineColumn(RefineStrips& strips, int x, int h, int centre, int window);
+// centre + window + 4. The row is that of the topmost clear step (at least
+// kTopStepShare of the strongest, and kTopStepMin delta E with the
+// lightness difference times `lightness_gain`: see LightnessStretch in
+// skyline.cc), else the strongest.
+ColumnFit RefineColumn(RefineStrips& strips, int x, int h, int centre, int window, float lightness_gain = 1.0f);
 
 // Raises each column's boundary to where the sky ends, when the boundary
 // found lies a few rows inside the terrain: a hazy far ridge whose colour is

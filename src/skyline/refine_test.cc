@@ -423,6 +423,31 @@ cv::Mat GradientWithNoise(double sigma) {
   return img;
 }
 
+// A hazy photo's grey sky (level 150, L* 62) over a ridge's top 4 rows
+// darker by 3.7 delta E (140), over snow 7.4 lighter than the ridge (160):
+// each column's refinement, centred between the two steps, takes the
+// snow's edge as taken (the ridge's step is half the snow's, but under the
+// least clear step of 5 delta E) and the ridge's top when the lightness
+// difference counts 2.5 times (a photo spanning 40% of the scale).
+TEST(RefineColumn, AFaintRidgeTopIsClearOverTheLightnessStretched) {
+  constexpr int w = 40, h = 80, ridge = 40, snow = 44;
+  cv::Mat img(h, w, CV_8UC3);
+  for (int y = 0; y < h; ++y) {
+    const uint8_t v = y < ridge ? 150 : y < snow ? 140 : 160;
+    img.row(y).setTo(cv::Scalar(v, v, v));
+  }
+  const int centre = 42, window = 3;
+  RefineStrips strips;
+  strips.count = 2 * window + 10;
+  strips.first.assign(w, centre - window - 5);
+  GatherStrips(img, strips);
+  for (int x = 0; x < w; ++x) {
+    EXPECT_NEAR(RefineColumn(strips, x, h, centre, window).y, snow, 0.6) << "column " << x;
+    EXPECT_NEAR(RefineColumn(strips, x, h, centre, window, 1.0f).y, snow, 0.6) << "column " << x;
+    EXPECT_NEAR(RefineColumn(strips, x, h, centre, window, 2.5f).y, ridge, 0.6) << "column " << x;
+  }
+}
+
 TEST(NoiseSigma, ReadsThePixelNoiseNotTheScenesGradientsOrEdges) {
   // Noise of sigma s per channel is s * 0.668 in luma (0.114, 0.587, 0.299).
   EXPECT_LT(NoiseSigma(GradientWithNoise(0.0)), 0.5);

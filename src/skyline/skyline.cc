@@ -66,6 +66,9 @@ constexpr double kIsolatedGapColumns = 8.0;   // ... between at least this many 
 constexpr double kExposureTarget = 0.42;  // linear light of the bright end (99.5th percentile of luma) ...
 constexpr double kMaxExposureGain = 8.0;  // ... a photo under half of it is brightened to, by at most this (3 stops)
 constexpr double kVignettedCornerStops = -1.0;  // a photo whose corners lose more light than this is flattened
+constexpr double kLightnessSpanLow = 0.005;     // the photo's lightness span: from this quantile of L* ...
+constexpr double kLightnessSpanHigh = 0.995;    // ... to this one (the work image, every 4th pixel across and down)
+constexpr double kMaxLightnessStretch = 3.0;    // the refinement judges steps over the span as over 100, at most x3
 constexpr double kFogReferenceLightness = 100.0;  // L* + 16 of a sky (L* 84) at which fog_contrast applies as it is
 constexpr double kFogSpreadRows = 2.4;  // median contrast / largest one-row step above which a faint boundary is a fade
 constexpr double kMonochromeSoftFactor = 1.5;  // ... times this in a monochrome image (no sky chroma to tell fog by)
@@ -1141,6 +1144,29 @@ bool Monochrome(const LabPlanes& lab, std::vector<float>& chroma) {
   return *p99 < kMonochromeChroma;
 }
 
+// The factor that stretches the photo's lightness span (L* from its
+// kLightnessSpanLow to its kLightnessSpanHigh quantile, every 4th pixel of
+// the work image across and down) over the whole scale of 100: 1 for a
+// photo that spans it, at most kMaxLightnessStretch. Measured over the
+// whole of the 13 real photos: about 1.05-2.7 (the hazy CG05 evenings 2.5
+// and 2.7, the AK01b snowfields under haze 1.45-1.8).
+double LightnessStretch(const LabPlanes& lab, std::vector<float>& ls) {
+  constexpr int kStride = 4;
+  ls.clear();
+  for (int c = 0; c < lab.Rows(); c += kStride) {
+    const float* l = lab.l.ptr<float>(c);
+    for (int r = 0; r < lab.Cols(); r += kStride) ls.push_back(l[r]);
+  }
+  if (ls.size() < 2) return 1.0;
+  auto at = [&](double q) {
+    const auto it = ls.begin() + static_cast<std::ptrdiff_t>(q * static_cast<double>(ls.size() - 1));
+    std::nth_element(ls.begin(), it, ls.end());
+    return static_cast<double>(*it);
+  };
+  const double high = at(kLightnessSpanHigh), low = at(kLightnessSpanLow);
+  return std::clamp(100.0 / std::max(1.0, high - low), 1.0, kMaxLightnessStretch);
+}
+
 // The b* below which a pixel is saturated blue, sky and never terrain: at
 // dawn, dusk or under a blue white balance the whole frame is blue, the
 // ground too (its median b* in the bottom third, usually terrain, is then
@@ -1348,8 +1374,12 @@ namespace {
 // model whose departures veto sky (the first fit) has a robust scale of at
 // least `sky_floor` (delta E); the refit that RaiseToSkyModelDeparture reads
 // keeps kSkyModelFloor.
+// `stretched_rows`, when given, receives the rows read with the least clear
+// step judged over the photo's lightness span (see the refinement below), or
+// is left empty where that reading is the one returned (a photo spanning the
+// whole scale, or no skyline).
 Skyline ExtractSceneSkyline(const cv::Mat& image, const SkylineOptions& options, double exposure,
-                            float sky_floor = kSkyModelFloor) {
+                            float sky_floor = kSkyModelFloor, std::vector<double>* stretched_rows = nullptr) {
   Skyline out;
   out.width = image.cols;
   out.height = image.rows;
@@ -1359,8 +1389,19 @@ Skyline ExtractSceneSkyline(const cv::Mat& image, const SkylineOptions& options,
 
   const cv::Mat bgr = ToBgr(image);
   if (const int k = ExtractionReduction(bgr.cols, bgr.rows); k >= 2) {
+    const cv::Mat reduced = BlockMeans(bgr, k);
+    std::vector<double> reduced_rows;
     Skyline up =
-        MappedUp(ExtractSceneSkyline(BlockMeans(bgr, k), options, exposure, sky_floor), k, image.cols, image.rows);
+        MappedUp(ExtractSceneSkyline(reduced, options, exposure, sky_floor, stretched_rows ? &reduced_rows : nullptr),
+                 k, image.cols, image.rows);
+    if (stretched_rows && !reduced_rows.empty()) {
+      Skyline rows;
+      rows.width = reduced.cols, rows.height = reduced.rows;
+      rows.y = std::move(reduced_rows);
+      rows.confidence.assign(reduced.cols, 0.0);
+      *stretched_rows = MappedUp(rows, k, image.cols, image.rows).y;
+      for (int x = 0; x < image.cols; ++x) (*stretched_rows)[x] = PolishedRow(bgr, k, x, (*stretched_rows)[x]);
+    }
     // At full size to within a fraction of a pixel: the edge each column
     // was read at, and its raise to a fainter ridge above where that raise
     // is within a reduced row (a row the edge half fills departs from the
@@ -1550,92 +1591,124 @@ Skyline ExtractSceneSkyline(const cv::Mat& image, const SkylineOptions& options,
   for (int x = 0; x < image.cols; ++x)
     if (occluded[x])
       for (int k = std::max(0, x - grow); k <= std::min(image.cols - 1, x + grow); ++k) grown[k] = 1;
-  for (int x = 0; x < image.cols; ++x) {
-    const ColumnFit& f = fits[x];
-    if (!std::isfinite(f.y) || grown[x] || f.contrast < min_contrast) continue;
-    out.y[x] = std::clamp(f.y, 0.0, static_cast<double>(image.rows));
-    out.confidence[x] = std::clamp((f.contrast - min_contrast) / 20.0, 0.05, 1.0);
-  }
-  // Fog: where a horizon is seen against the sky, some of it stands out
-  // clearly; when even the clearest tenth of the boundary is faint and the
-  // boundary is soft, it is where near terrain fades into fog or whiteout,
-  // not the horizon (a faint but sharp far ridge in haze stays).
-  std::vector<double> contrasts, spreads, chromas, sky_ls;
-  for (int x = 0; x < image.cols; ++x)
-    if (std::isfinite(out.y[x]))
-      contrasts.push_back(fits[x].contrast), spreads.push_back(fits[x].spread), chromas.push_back(fits[x].sky_chroma),
-          sky_ls.push_back(fits[x].sky_l);
-  // The sky's chroma as taken: brightening (Exposed, the 8-bit values times
-  // `exposure`) raised chroma with the light, as (exposure^2.2)^(1/3), and a
-  // grey dusk sky brightened 3 stops read as blue, so its fog went unjudged.
-  if (!contrasts.empty() && Quantile(chromas, 0.5) / light_gain < options.fog_max_chroma) {
-    const double clearest = Quantile(contrasts, 0.9), median_spread = Quantile(spreads, 0.5);
-    // A fade spreads its colour change over more rows than an edge, which
-    // the renderer or the lens smooths over ~2 rows per 1000 columns. A
-    // monochrome image's sky has no chroma, so that cue tells nothing: its
-    // fade must be clearly soft. Measured: grey copies of the hazy CG05
-    // photos (a sharp ridge, 6-8 delta E, 3.3 rows) lost every column to
-    // this test under the colour threshold; a grey 60-row fade spreads 5.3.
-    const double soft = kFogSpreadRows * std::max(1.0, image.cols / 1024.0) *
-                        (Monochrome(work_t, ws.sample) ? kMonochromeSoftFactor : 1.0);
-    // The contrast an eye reads is relative to the light (an exposure 1.7
-    // stops darker shrinks every delta E by a third): under a sky darker
-    // than L* 84 the threshold shrinks with (L* + 16). Measured: a copy of
-    // AK01b_20090827 darkened 1.7 stops (sky L* 30, clearest tenth 17.1)
-    // or under a grey veil (L* 64, 17.9) was nulled whole; the rendered
-    // fog scene's white sky (L* 92, 15.8) stays fog.
-    const double sky_l = Quantile(sky_ls, 0.5);
-    const double fog_contrast = options.fog_contrast * std::min(1.0, (sky_l + 16.0) / kFogReferenceLightness);
-    // A faint soft boundary is fog only where the terrain comes out of it
-    // below (FogRamp). Measured: the rendered fog scene's grass comes out by
-    // 19.9 delta E (1.1 times its fog_contrast of 18), this module's
-    // synthetic 60-row fades by 0.44-0.65 times theirs; copies of the real
-    // photos under a grey veil or an overcast sky's light, whose skyline any
-    // eye sees, by 0.6-1.9 delta E (0.04-0.13 times theirs): 9 of 39 copies
-    // under 50-60% grey or an overcast light and 2 of the 104 photometric
-    // copies (docs/MEASUREMENTS.md, "A grey veil is not fog") were nulled whole. The noisy
-    // and vignetted copies of CG05_20050811_190000, whose boundary lies on
-    // the glacier front in part, read 0.41 and 0.45 but pass the contrast.
-    if (clearest < fog_contrast && median_spread > soft &&
-        FogRamp(work_t, out.y, sx, sy) > kFogRampShare * fog_contrast) {
-      std::fill(out.y.begin(), out.y.end(), NAN);
-      std::fill(out.confidence.begin(), out.confidence.end(), 0.0);
-      return out;
+  // Everything after the refinement, from the columns' fits (the rows as
+  // taken, or as read over the photo's lightness span with the colours and
+  // contrasts as taken; ExtractSkyline keeps the columns the first gives).
+  auto finish = [&](const std::vector<ColumnFit>& read) {
+    Skyline done = out;
+    for (int x = 0; x < image.cols; ++x) {
+      const ColumnFit& f = read[x];
+      if (!std::isfinite(f.y) || grown[x] || f.contrast < min_contrast) continue;
+      done.y[x] = std::clamp(f.y, 0.0, static_cast<double>(image.rows));
+      done.confidence[x] = std::clamp((f.contrast - min_contrast) / 20.0, 0.05, 1.0);
     }
+    // Fog: where a horizon is seen against the sky, some of it stands out
+    // clearly; when even the clearest tenth of the boundary is faint and the
+    // boundary is soft, it is where near terrain fades into fog or whiteout,
+    // not the horizon (a faint but sharp far ridge in haze stays).
+    std::vector<double> contrasts, spreads, chromas, sky_ls;
+    for (int x = 0; x < image.cols; ++x)
+      if (std::isfinite(done.y[x]))
+        contrasts.push_back(read[x].contrast), spreads.push_back(read[x].spread), chromas.push_back(read[x].sky_chroma),
+            sky_ls.push_back(read[x].sky_l);
+    // The sky's chroma as taken: brightening (Exposed, the 8-bit values times
+    // `exposure`) raised chroma with the light, as (exposure^2.2)^(1/3), and a
+    // grey dusk sky brightened 3 stops read as blue, so its fog went unjudged.
+    if (!contrasts.empty() && Quantile(chromas, 0.5) / light_gain < options.fog_max_chroma) {
+      const double clearest = Quantile(contrasts, 0.9), median_spread = Quantile(spreads, 0.5);
+      // A fade spreads its colour change over more rows than an edge, which
+      // the renderer or the lens smooths over ~2 rows per 1000 columns. A
+      // monochrome image's sky has no chroma, so that cue tells nothing: its
+      // fade must be clearly soft. Measured: grey copies of the hazy CG05
+      // photos (a sharp ridge, 6-8 delta E, 3.3 rows) lost every column to
+      // this test under the colour threshold; a grey 60-row fade spreads 5.3.
+      const double soft = kFogSpreadRows * std::max(1.0, image.cols / 1024.0) *
+                          (Monochrome(work_t, ws.sample) ? kMonochromeSoftFactor : 1.0);
+      // The contrast an eye reads is relative to the light (an exposure 1.7
+      // stops darker shrinks every delta E by a third): under a sky darker
+      // than L* 84 the threshold shrinks with (L* + 16). Measured: a copy of
+      // AK01b_20090827 darkened 1.7 stops (sky L* 30, clearest tenth 17.1)
+      // or under a grey veil (L* 64, 17.9) was nulled whole; the rendered
+      // fog scene's white sky (L* 92, 15.8) stays fog.
+      const double sky_l = Quantile(sky_ls, 0.5);
+      const double fog_contrast = options.fog_contrast * std::min(1.0, (sky_l + 16.0) / kFogReferenceLightness);
+      // A faint soft boundary is fog only where the terrain comes out of it
+      // below (FogRamp). Measured: the rendered fog scene's grass comes out by
+      // 19.9 delta E (1.1 times its fog_contrast of 18), this module's
+      // synthetic 60-row fades by 0.44-0.65 times theirs; copies of the real
+      // photos under a grey veil or an overcast sky's light, whose skyline any
+      // eye sees, by 0.6-1.9 delta E (0.04-0.13 times theirs): 9 of 39 copies
+      // under 50-60% grey or an overcast light and 2 of the 104 photometric
+      // copies (docs/MEASUREMENTS.md, "A grey veil is not fog") were nulled whole. The noisy
+      // and vignetted copies of CG05_20050811_190000, whose boundary lies on
+      // the glacier front in part, read 0.41 and 0.45 but pass the contrast.
+      if (clearest < fog_contrast && median_spread > soft &&
+          FogRamp(work_t, done.y, sx, sy) > kFogRampShare * fog_contrast) {
+        std::fill(done.y.begin(), done.y.end(), NAN);
+        std::fill(done.confidence.begin(), done.confidence.end(), 0.0);
+        return done;
+      }
+    }
+    // Fainter columns that continue clear ones, after the fog test (which
+    // reads the clear columns only).
+    ContinueFaintColumns(read, grown, options.faint_contrast_share * min_contrast,
+                         kFaintMaxJumpPx * std::max(1.0, image.cols / 1024.0), image.rows, done);
+    // A hazy far ridge's top taken for sky: the boundary up to where the sky ends.
+    skyline_detail::RaiseToSkyEnd(bgr, grown, done.y);
+    // A far ridge in haze above a clearer near one: the boundary up to where the sky ends.
+    skyline_detail::RaiseToSkyModelDeparture(bgr, sky_model, sx, sy, deep_blue_b, grown, done.y, done.y_alt);
+    // A column dipping below its neighbours onto an inner edge: up to the faint ridge above it.
+    // Not from the columns raised to a departure from the sky model on both
+    // sides (a sunset's glow raised over a notch would lift the notch; on one
+    // side they count: real photos 80.6% -> 80.8% of the traced columns
+    // within 2 px, rendered 97.3% -> 97.4%); those raised to the sky's end
+    // count (measured: without them the real photos' gain is lost, 99
+    // columns mended -> 7).
+    skyline_detail::RaiseDips(bgr, grown, done.y, done.y_alt);
+    // A ridge's top fainter than its edge lower down (a dark crest, a bright
+    // rim, haze on the upper slope): the boundary up to where the lightness
+    // first departs from the sky's (measured on the real photos: 76.3% ->
+    // 80.1% of the traced columns within 2 px; rendered 97.3% -> 97.4%). The
+    // matching reads the edge it was raised from (y_alt): matching the raised
+    // boundary against the 100 m DEM, whose flattened peaks lie lower still,
+    // left AK01b_20080811 ambiguous (cost ratio 1.40 -> 1.39) and 0 of its 7
+    // perturbed runs registered instead of 5.
+    {
+      const std::vector<double> before = done.y;
+      skyline_detail::RaiseToFirstDeparture(bgr, grown, done.y);
+      done.y_alt.resize(done.y.size(), NAN);
+      for (size_t x = 0; x < done.y.size(); ++x)
+        if (done.y[x] != before[x] && !std::isfinite(done.y_alt[x])) done.y_alt[x] = before[x];
+    }
+    DropEmptyAlt(done);
+    return done;
+  };
+  Skyline taken = finish(fits);
+  // Each column's row read again with its least clear step judged over the
+  // photo's own lightness span (LightnessStretch): a hazy photo's lightness
+  // spans half the scale or less, and the faint step at a snow ridge's top,
+  // half the snow's edge below it but under the 5 delta E of a clear step as
+  // taken, stands out to an eye adapted to that span. Only the rows move:
+  // whether a column is given, and the fog test, read the colours as taken.
+  // The matching reads the skyline as taken (ExtractSkyline keeps it as
+  // y_alt where the rows differ), so no registration changes. Measured
+  // (docs/MEASUREMENTS.md, "Lightness read over the photo's span"): the
+  // real photos' traced columns within 2 px 80.8% -> 81.4%, the rendered
+  // scenes 97.4% as before. Stretching the lightness itself (every step and
+  // colour of the refinement) read 82.3% but put a thin pale sky's boundary
+  // on the texture of the snow under it (655 -> 584 of 768 columns within
+  // 2 px, ThinPaleSkyOverSnowToTheBottomKeepsItsColumns).
+  if (const double stretch = LightnessStretch(work_t, ws.sample); stretched_rows && stretch > 1.0) {
+    std::vector<ColumnFit> moved = fits;
+    int changed = 0;
+    for (int x = 0; x < image.cols; ++x)
+      if (strips.first[x] != RefineStrips::kNoStrip && std::isfinite(fits[x].y))
+        if (const double y = RefineColumn(strips, x, image.rows, centres[x], window, static_cast<float>(stretch)).y;
+            std::isfinite(y) && y != fits[x].y)
+          moved[x].y = y, ++changed;
+    if (changed > 0) *stretched_rows = finish(moved).y;
   }
-  // Fainter columns that continue clear ones, after the fog test (which
-  // reads the clear columns only).
-  ContinueFaintColumns(fits, grown, options.faint_contrast_share * min_contrast,
-                       kFaintMaxJumpPx * std::max(1.0, image.cols / 1024.0), image.rows, out);
-  // A hazy far ridge's top taken for sky: the boundary up to where the sky ends.
-  skyline_detail::RaiseToSkyEnd(bgr, grown, out.y);
-  // A far ridge in haze above a clearer near one: the boundary up to where the sky ends.
-  skyline_detail::RaiseToSkyModelDeparture(bgr, sky_model, sx, sy, deep_blue_b, grown, out.y, out.y_alt);
-  // A column dipping below its neighbours onto an inner edge: up to the faint ridge above it.
-  // Not from the columns raised to a departure from the sky model on both
-  // sides (a sunset's glow raised over a notch would lift the notch; on one
-  // side they count: real photos 80.6% -> 80.8% of the traced columns
-  // within 2 px, rendered 97.3% -> 97.4%); those raised to the sky's end
-  // count (measured: without them the real photos' gain is lost, 99
-  // columns mended -> 7).
-  skyline_detail::RaiseDips(bgr, grown, out.y, out.y_alt);
-  // A ridge's top fainter than its edge lower down (a dark crest, a bright
-  // rim, haze on the upper slope): the boundary up to where the lightness
-  // first departs from the sky's (measured on the real photos: 76.3% ->
-  // 80.1% of the traced columns within 2 px; rendered 97.3% -> 97.4%). The
-  // matching reads the edge it was raised from (y_alt): matching the raised
-  // boundary against the 100 m DEM, whose flattened peaks lie lower still,
-  // left AK01b_20080811 ambiguous (cost ratio 1.40 -> 1.39) and 0 of its 7
-  // perturbed runs registered instead of 5.
-  {
-    const std::vector<double> before = out.y;
-    skyline_detail::RaiseToFirstDeparture(bgr, grown, out.y);
-    out.y_alt.resize(out.y.size(), NAN);
-    for (size_t x = 0; x < out.y.size(); ++x)
-      if (out.y[x] != before[x] && !std::isfinite(out.y_alt[x])) out.y_alt[x] = before[x];
-  }
-  DropEmptyAlt(out);
-  return out;
+  return taken;
 }
 
 }  // namespace
@@ -1658,17 +1731,22 @@ Skyline ExtractSkyline(const cv::Mat& image, const SkylineOptions& options) {
   const int top = OverlayBandRows(bgr, true), bottom = OverlayBandRows(bgr, false);
   const bool banded = (top > 0 || bottom > 0) && bgr.rows - top - bottom >= 8;
   const cv::Mat scene = banded ? bgr.rowRange(top, bgr.rows - bottom).clone() : bgr;
-  auto extract = [&](float sky_floor) {
-    Skyline s = ExtractSceneSkyline(scene, options, exposure, sky_floor);
+  // The skyline as taken, and the rows read with the least clear step judged
+  // over the photo's lightness span (`stretched`, empty where that reading
+  // is the same).
+  auto extract = [&](float sky_floor, std::vector<double>& stretched) {
+    Skyline s = ExtractSceneSkyline(scene, options, exposure, sky_floor, &stretched);
     if (banded) {
       s.height = image.rows;
       s.overlay_top_rows = top, s.overlay_bottom_rows = bottom;
       for (double& v : s.y) v += top;
       for (double& v : s.y_alt) v += top;
+      for (double& v : stretched) v += top;
     }
     return s;
   };
-  Skyline s = extract(kSkyModelFloor);
+  std::vector<double> stretched;
+  Skyline s = extract(kSkyModelFloor, stretched);
   // A JPEG's smooth sky comes in 8-row blocks, its gradient in steps of a
   // few delta E between them (chroma steps at quality 30-50), and the sky
   // model, fitted where the blocks are flat, takes the sky below such a
@@ -1692,10 +1770,15 @@ Skyline ExtractSkyline(const cv::Mat& image, const SkylineOptions& options) {
     const std::vector<uint8_t> runs = skyline_detail::GridRunColumns(
         s.y, kJpegBlockRows, kGridRowSlack,
         skyline_detail::ColumnsPer1024(kGridShortRunColumns, image.cols, 12));
-    const Skyline again = extract(kBlockSkyFloor);
+    std::vector<double> stretched_again;
+    const Skyline again = extract(kBlockSkyFloor, stretched_again);
     s.y_alt.resize(s.width, NAN);
+    if (!stretched.empty() || !stretched_again.empty()) stretched.resize(s.width, NAN);
     for (int x = 0; x < s.width; ++x)
-      if (runs[x]) s.y[x] = again.y[x], s.confidence[x] = again.confidence[x], s.y_alt[x] = again.Alt(x);
+      if (runs[x]) {
+        s.y[x] = again.y[x], s.confidence[x] = again.confidence[x], s.y_alt[x] = again.Alt(x);
+        if (!stretched.empty()) stretched[x] = stretched_again.empty() ? NAN : stretched_again[x];
+      }
     DropEmptyAlt(s);
   }
   // A short stretch of columns between long gaps is no part of a ridge:
@@ -1715,6 +1798,20 @@ Skyline ExtractSkyline(const cv::Mat& image, const SkylineOptions& options) {
         s.y[x] = NAN, s.confidence[x] = 0.0;
         if (x < static_cast<int>(s.y_alt.size())) s.y_alt[x] = NAN;
       }
+    DropEmptyAlt(s);
+  }
+  // The rows read over the photo's lightness span are the skyline's; the
+  // matching reads the skyline as taken (MatchY: its y_alt where it set
+  // one, else its y), kept as y_alt wherever the two differ. Columns given
+  // in one reading only keep the skyline as taken.
+  if (!stretched.empty()) {
+    s.y_alt.resize(s.width, NAN);
+    for (int x = 0; x < s.width; ++x) {
+      if (!std::isfinite(s.y[x]) || !std::isfinite(stretched[x])) continue;
+      const double matched = s.MatchY(x);
+      s.y[x] = stretched[x];
+      s.y_alt[x] = stretched[x] == matched ? NAN : matched;
+    }
     DropEmptyAlt(s);
   }
   return s;

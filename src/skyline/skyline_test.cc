@@ -398,6 +398,34 @@ TEST(ExtractSkyline, AThinDarkCrestBetweenWhiteSkyAndSnowIsTheSkyline) {
   EXPECT_GE(WithinPx(s, truth, 2.0), w * 90 / 100);
 }
 
+// A hazy photo whose lightness spans a third of the scale: a grey sky
+// (level 150) over a far snow ridge whose top 4 rows are a haze-faded
+// crest 3.7 delta E darker (140), its snow 7.4 lighter (160), dark rock far
+// below, and pixel noise of 2 levels. The skyline is the crest's top, not
+// the snow's edge 4 rows down (660 of the 960 columns within 2 px before
+// the refinement read the lightness stretched over the photo's span).
+TEST(ExtractSkyline, AFaintCrestOverSnowInAHazyPhotoIsTheSkyline) {
+  const int w = 960, h = 600;
+  cv::Mat img(h, w, CV_8UC3, cv::Scalar(150, 150, 150));
+  std::vector<double> truth(w);
+  for (int x = 0; x < w; ++x) {
+    truth[x] = 200.0 + 0.05 * x + 20.0 * std::sin(x / 37.0);
+    for (int y = static_cast<int>(std::ceil(truth[x] - 0.5)); y < h; ++y) {
+      const uint8_t v = y < truth[x] + 4.0 ? 140 : y < 420 ? 160 : 95;
+      img.at<cv::Vec3b>(y, x) = cv::Vec3b(v, v, v);
+    }
+  }
+  AddNoise(img, 2.0);
+  const Skyline s = ExtractSkyline(img, SkylineOptions{});
+  EXPECT_GE(WithinPx(s, truth, 2.0), w * 80 / 100) << WithinPx(s, truth, 2.0);
+  // The matching still reads the rows as taken: the snow's edge, where the
+  // reading over the photo's lightness span moved them up to the crest.
+  int snow_edge = 0;
+  for (int x = 0; x < w; ++x)
+    snow_edge += std::isfinite(s.Alt(x)) && std::abs(s.MatchY(x) - (std::ceil(truth[x] - 0.5) + 4.0)) <= 1.5;
+  EXPECT_GE(snow_edge, w / 10);
+}
+
 // A blue sky (deep at the top, paler towards the horizon) over snowy,
 // textured terrain, with `contrails` soft white bands across it (centre row
 // at the left and right edges, Gaussian sigma in px, peak opacity).
