@@ -67,7 +67,8 @@ BENCHMARK(BM_SkylineNoisy)->Args({1024, 683})->Unit(benchmark::kMillisecond);
 // ... and of a hazy real photo (AK01b_20100525, 724 x 486, its lightness
 // spanning about 56 of L*'s 100), whose rows are read a second time with
 // the least clear step judged over that span (LightnessStretch): the
-// extraction's steps after the refinement run twice.
+// extraction's steps after the refinement run twice (measured 2026-12-07:
+// 41-43 ms before, 46-47 ms with it).
 void BM_SkylineHazyReal(benchmark::State& state) {
   cv::setNumThreads(1);
   const auto shared = testing::SharedDir();
