@@ -88,23 +88,22 @@ ColumnFit RefineColumn(RefineStrips& strips, int x, int h, int centre, int windo
   // the top for the first edge): a faint far ridge above a contrasty near
   // one is the skyline.
   std::vector<float>& steps = strips.steps;
-  std::vector<float>& clear = strips.clear;  // the steps with the lightness difference times lightness_gain
   std::vector<int>& rows = strips.rows;
-  steps.clear(), clear.clear(), rows.clear();
+  steps.clear(), rows.clear();
   int best = centre;
   float best_step = -1;
   for (int r = centre - window; r <= centre + window; ++r) {
     if (r < 1 || r >= h) continue;
     steps.push_back(std::sqrt(wide.DistanceSq(r - first, r - 1 - first)));
-    clear.push_back(lightness_gain == 1.0f ? steps.back()
-                                           : std::sqrt(wide.DistanceSq(r - first, r - 1 - first, lightness_gain)));
     rows.push_back(r);
     if (steps.back() > best_step) best_step = steps.back(), best = r;  // the strongest, if no step is clear
   }
   const int m = static_cast<int>(steps.size());
   for (int i = 0; i < m; ++i) {
     const bool local_max = (i == 0 || steps[i] >= steps[i - 1]) && (i + 1 == m || steps[i] >= steps[i + 1]);
-    if (local_max && steps[i] >= kTopStepShare * best_step && clear[i] >= kTopStepMin) {
+    // Clear: at least kTopStepMin with the lightness difference times lightness_gain.
+    if (local_max && steps[i] >= kTopStepShare * best_step &&
+        std::sqrt(wide.DistanceSq(rows[i] - first, rows[i] - 1 - first, lightness_gain)) >= kTopStepMin) {
       best = rows[i];
       break;
     }

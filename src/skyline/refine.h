@@ -40,12 +40,9 @@ struct LabStrips {
     l.resize(n), a.resize(n), b.resize(n);
     LabConverter::Instance().Convert(bgr.data(), 3, n, l.data(), a.data(), b.data());
   }
-  float DistanceSq(int i, int j) const {
-    const float dl = l[i] - l[j], da = a[i] - a[j], db = b[i] - b[j];
-    return dl * dl + da * da + db * db;
-  }
-  // The same with the lightness difference times `gain`.
-  float DistanceSq(int i, int j, float gain) const {
+  // The squared delta E between entries i and j, the lightness difference
+  // times `gain`.
+  float DistanceSq(int i, int j, float gain = 1.0f) const {
     const float dl = gain * (l[i] - l[j]), da = a[i] - a[j], db = b[i] - b[j];
     return dl * dl + da * da + db * db;
   }
@@ -60,7 +57,7 @@ struct RefineStrips {
   int count = 0;
   std::vector<int> first;  // per column; kNoStrip where the boundary is outside the image
   LabStrips column, wide;
-  std::vector<float> steps, clear;  // RefineColumn's scratch
+  std::vector<float> steps;  // RefineColumn's scratch
   std::vector<int> rows;
   static constexpr int kNoStrip = std::numeric_limits<int>::min();
 };

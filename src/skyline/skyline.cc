@@ -1698,7 +1698,7 @@ Skyline ExtractSceneSkyline(const cv::Mat& image, const SkylineOptions& options,
   // colour of the refinement) read 82.3% but put a thin pale sky's boundary
   // on the texture of the snow under it (655 -> 584 of 768 columns within
   // 2 px, ThinPaleSkyOverSnowToTheBottomKeepsItsColumns).
-  if (const double stretch = LightnessStretch(work_t, ws.sample); stretched_rows && stretch > 1.0) {
+  if (const double stretch = stretched_rows ? LightnessStretch(work_t, ws.sample) : 1.0; stretch > 1.0) {
     std::vector<ColumnFit> moved = fits;
     int changed = 0;
     for (int x = 0; x < image.cols; ++x)

@@ -382,18 +382,31 @@ TEST(ExtractSkyline, CablesAcrossTheSkyAreNotTheSkyline) {
   EXPECT_GE(WithinPx(s, truth, 2.0), w * 90 / 100);
 }
 
+// A 960 x 600 scene: `sky` down to a bumpy skyline (`truth`), a crest
+// `crest_rows` thick under it, then `snow` down to row `snow_end` and
+// `below` from there.
+cv::Mat SkyOverCrestOverSnow(const cv::Vec3b& sky, const cv::Vec3b& crest, double crest_rows, const cv::Vec3b& snow,
+                             int snow_end, const cv::Vec3b& below, std::vector<double>& truth) {
+  const int w = 960, h = 600;
+  cv::Mat img(h, w, CV_8UC3, cv::Scalar(sky[0], sky[1], sky[2]));
+  truth.resize(w);
+  for (int x = 0; x < w; ++x) {
+    truth[x] = 200.0 + 0.05 * x + 20.0 * std::sin(x / 37.0);
+    for (int y = static_cast<int>(std::ceil(truth[x] - 0.5)); y < h; ++y)
+      img.at<cv::Vec3b>(y, x) = y < truth[x] + crest_rows ? crest : y < snow_end ? snow : below;
+  }
+  return img;
+}
+
 // A dark rock crest, 6 px thick, between a white sky and white snow of
 // the sky's colour (an overcast winter day): a thin line between two equal
 // colours, as a cable is, but the skyline.
 TEST(ExtractSkyline, AThinDarkCrestBetweenWhiteSkyAndSnowIsTheSkyline) {
-  const int w = 960, h = 600;
-  cv::Mat img(h, w, CV_8UC3, cv::Scalar(236, 236, 234));
-  std::vector<double> truth(w);
-  for (int x = 0; x < w; ++x) {
-    truth[x] = 200.0 + 0.05 * x + 20.0 * std::sin(x / 37.0);
-    for (int y = static_cast<int>(std::ceil(truth[x] - 0.5)); y < h; ++y)
-      img.at<cv::Vec3b>(y, x) = y < truth[x] + 6.0 ? cv::Vec3b(60, 62, 66) : cv::Vec3b(232, 233, 233);
-  }
+  const int w = 960;
+  std::vector<double> truth;
+  const cv::Vec3b snow(232, 233, 233);
+  const cv::Mat img =
+      SkyOverCrestOverSnow(cv::Vec3b(236, 236, 234), cv::Vec3b(60, 62, 66), 6.0, snow, 600, snow, truth);
   const Skyline s = ExtractSkyline(img, SkylineOptions{});
   EXPECT_GE(WithinPx(s, truth, 2.0), w * 90 / 100);
 }
@@ -405,16 +418,10 @@ TEST(ExtractSkyline, AThinDarkCrestBetweenWhiteSkyAndSnowIsTheSkyline) {
 // the snow's edge 4 rows down (660 of the 960 columns within 2 px before
 // the refinement read the lightness stretched over the photo's span).
 TEST(ExtractSkyline, AFaintCrestOverSnowInAHazyPhotoIsTheSkyline) {
-  const int w = 960, h = 600;
-  cv::Mat img(h, w, CV_8UC3, cv::Scalar(150, 150, 150));
-  std::vector<double> truth(w);
-  for (int x = 0; x < w; ++x) {
-    truth[x] = 200.0 + 0.05 * x + 20.0 * std::sin(x / 37.0);
-    for (int y = static_cast<int>(std::ceil(truth[x] - 0.5)); y < h; ++y) {
-      const uint8_t v = y < truth[x] + 4.0 ? 140 : y < 420 ? 160 : 95;
-      img.at<cv::Vec3b>(y, x) = cv::Vec3b(v, v, v);
-    }
-  }
+  const int w = 960;
+  std::vector<double> truth;
+  cv::Mat img = SkyOverCrestOverSnow(cv::Vec3b(150, 150, 150), cv::Vec3b(140, 140, 140), 4.0, cv::Vec3b(160, 160, 160),
+                                     420, cv::Vec3b(95, 95, 95), truth);
   AddNoise(img, 2.0);
   const Skyline s = ExtractSkyline(img, SkylineOptions{});
   EXPECT_GE(WithinPx(s, truth, 2.0), w * 80 / 100) << WithinPx(s, truth, 2.0);
